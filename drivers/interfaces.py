@@ -1,0 +1,288 @@
+"""Abstract device interfaces of a BRDF goniophotometer.
+
+The application (`rig/`) only ever talks to these interfaces. A real driver
+implements one as a *protocol client* (Modbus, SCPI over TCP/serial); a simulator
+in `simulators/` is the *peer* of that protocol, or, for the camera, which has no
+public wire protocol, an in-process implementation of the interface itself.
+
+Angles are degrees, times seconds, currents amperes, illuminance lux,
+luminance cd/m². Every blocking call takes its time from a `Clock`, so that on
+the simulated rig moves and exposures cost rig time and no wall time.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class DeviceError(RuntimeError):
+    """A device refused, timed out or answered nonsense.
+
+    The message names the device and what it answered; `transient` tells the
+    runner whether a retry may help.
+    """
+
+    def __init__(self, device: str, message: str, *, transient: bool = False):
+        super().__init__(f"{device}: {message}")
+        self.device = device
+        self.transient = transient
+
+
+class Clock(abc.ABC):
+    """Time source of a rig: wall time on hardware, simulated time in simulators."""
+
+    @abc.abstractmethod
+    def now(self) -> float:
+        """Seconds since an arbitrary, fixed origin."""
+
+    @abc.abstractmethod
+    def sleep(self, seconds: float) -> None:
+        """Let `seconds` of rig time pass."""
+
+
+class Axis(abc.ABC):
+    """One motorised rotation axis (degrees)."""
+
+    name: str
+
+    @abc.abstractmethod
+    def start_move(self, target_deg: float) -> None:
+        """Start an absolute move and return at once."""
+
+    @abc.abstractmethod
+    def wait(self, timeout_s: float | None = None) -> None:
+        """Block until the axis is in position; raise DeviceError on alarm or timeout."""
+
+    @abc.abstractmethod
+    def position_deg(self) -> float:
+        """Read-back (encoder) position, the value the dataset records."""
+
+    @abc.abstractmethod
+    def is_moving(self) -> bool: ...
+
+    @abc.abstractmethod
+    def stop(self) -> None:
+        """Decelerate to a stop now. Must be safe to call at any time."""
+
+    @abc.abstractmethod
+    def home(self) -> None:
+        """Run the homing sequence and block until done."""
+
+    @abc.abstractmethod
+    def move_time_s(self, start_deg: float, target_deg: float) -> float:
+        """Predicted duration of a move (for plans and timeouts)."""
+
+    def identity(self) -> str:
+        return self.name
+
+    def close(self) -> None:
+        """Release the connection; the default has nothing to release."""
+
+
+class TwoAxisPositioner:
+    """Two axes moved together: the goniometer camera arm or the sample stage.
+
+    Concrete on purpose: what differs between rigs is the axis driver, not the
+    way two axes are started together and waited for.
+    """
+
+    def __init__(self, name: str, first: Axis, second: Axis):
+        self.name = name
+        self.axes = (first, second)
+
+    def move_to(self, first_deg: float, second_deg: float, timeout_s: float | None = None) -> None:
+        for axis, target in zip(self.axes, (first_deg, second_deg)):
+            axis.start_move(target)
+        for axis in self.axes:
+            axis.wait(timeout_s)
+
+    def positions_deg(self) -> tuple[float, float]:
+        return self.axes[0].position_deg(), self.axes[1].position_deg()
+
+    def move_time_s(self, start: tuple[float, float], target: tuple[float, float]) -> float:
+        """Both axes run at once, so the slower one sets the time."""
+        return max(ax.move_time_s(s, t) for ax, s, t in zip(self.axes, start, target))
+
+    def stop(self) -> None:
+        errors = []
+        for axis in self.axes:
+            try:
+                axis.stop()
+            except Exception as exc:  # keep stopping the other axis
+                errors.append(exc)
+        if errors:
+            raise errors[0]
+
+    def home(self) -> None:
+        for axis in self.axes:
+            axis.home()
+
+    def identity(self) -> str:
+        return f"{self.name}[{', '.join(ax.identity() for ax in self.axes)}]"
+
+    def close(self) -> None:
+        for axis in self.axes:
+            axis.close()
+
+
+class LampSupply(abc.ABC):
+    """DC supply of the halogen lamp, driven in constant-current mode."""
+
+    @abc.abstractmethod
+    def identity(self) -> str: ...
+
+    @abc.abstractmethod
+    def set_current(self, current_a: float, ramp_s: float = 0.0) -> None:
+        """Ramp the output current to `current_a` over `ramp_s` (no inrush on a cold filament)."""
+
+    @abc.abstractmethod
+    def set_output(self, on: bool) -> None: ...
+
+    @abc.abstractmethod
+    def output_is_on(self) -> bool: ...
+
+    @abc.abstractmethod
+    def measure_current_a(self) -> float: ...
+
+    @abc.abstractmethod
+    def measure_voltage_v(self) -> float: ...
+
+    def close(self) -> None:
+        """Release the connection; the default has nothing to release."""
+
+
+@dataclass(frozen=True)
+class IlluminanceReading:
+    illuminance_lx: float
+    photocurrent_a: float
+    calibration_lx_per_a: float
+
+
+class IlluminanceMeter(abc.ABC):
+    """Optometer reading E⊥ at the sample position (perpendicular incidence)."""
+
+    @abc.abstractmethod
+    def identity(self) -> str: ...
+
+    @abc.abstractmethod
+    def read(self) -> IlluminanceReading:
+        """One reading; illuminance = photocurrent × calibration factor from configuration."""
+
+    def close(self) -> None:
+        """Release the connection; the default has nothing to release."""
+
+
+@dataclass(frozen=True)
+class Window:
+    """Rectangle of sensor pixels: columns x0..x0+width-1, rows y0..y0+height-1."""
+
+    x0: int
+    y0: int
+    width: int
+    height: int
+
+    @classmethod
+    def centred(cls, sensor_width: int, sensor_height: int, width: int, height: int) -> "Window":
+        return cls((sensor_width - width) // 2, (sensor_height - height) // 2, width, height)
+
+    def inner(self, other: "Window") -> tuple[slice, slice]:
+        """Array slices of `other` (which must lie inside self) in an image of this window."""
+        if not (self.x0 <= other.x0 and self.y0 <= other.y0
+                and other.x0 + other.width <= self.x0 + self.width
+                and other.y0 + other.height <= self.y0 + self.height):
+            raise ValueError(f"window {other} is not inside {self}")
+        r0, c0 = other.y0 - self.y0, other.x0 - self.x0
+        return slice(r0, r0 + other.height), slice(c0, c0 + other.width)
+
+
+@dataclass(frozen=True)
+class SensorInfo:
+    """What the pipeline needs to know of the sensor to merge and weight exposures."""
+
+    width_px: int
+    height_px: int
+    bit_depth: int
+    gain_dn_per_e: float           # K in EMVA 1288
+    read_noise_e: float            # temporal dark noise σd
+    black_level_dn: float          # offset added by the ADC
+    calibration_cd_m2_per_dn_s: float  # luminance = (DN - dark) / t × this
+    calibration_u_rel: float = 0.0     # relative standard uncertainty of that factor
+    min_exposure_s: float = 1e-4
+    max_exposure_s: float = 15.0
+
+    @property
+    def saturation_dn(self) -> int:
+        return 2 ** self.bit_depth - 1
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One raw exposure (or a dark frame taken with the shutter closed)."""
+
+    pixels_dn: np.ndarray          # uint16, shape (height, width) of `window`
+    exposure_s: float              # exposure time actually realised
+    window: Window
+    dark: bool = False
+    meta: dict = field(default_factory=dict)
+
+
+class LuminanceCamera(abc.ABC):
+    """Calibrated luminance camera: raw frames plus the calibration to cd/m²."""
+
+    sensor: SensorInfo
+
+    @abc.abstractmethod
+    def identity(self) -> str: ...
+
+    @abc.abstractmethod
+    def capture(self, exposure_s: float, window: Window | None = None) -> Frame:
+        """Expose with the shutter open; read only `window` (full sensor if None)."""
+
+    @abc.abstractmethod
+    def capture_dark(self, exposure_s: float, window: Window | None = None) -> Frame:
+        """Same exposure with the shutter closed (dark current + offset)."""
+
+    def full_window(self) -> Window:
+        return Window(0, 0, self.sensor.width_px, self.sensor.height_px)
+
+    def close(self) -> None:
+        """Release the connection; the default has nothing to release."""
+
+
+@dataclass
+class RigDevices:
+    """The five devices of one goniophotometer and the clock they run on."""
+
+    arm: TwoAxisPositioner        # arm_azimuth, arm_polar
+    stage: TwoAxisPositioner      # stage_vertical, stage_normal
+    lamp: LampSupply
+    meter: IlluminanceMeter
+    camera: LuminanceCamera
+    clock: Clock
+    simulated: bool = False
+
+    def identities(self) -> dict[str, str]:
+        return {"arm": self.arm.identity(), "stage": self.stage.identity(),
+                "lamp": self.lamp.identity(), "meter": self.meter.identity(),
+                "camera": self.camera.identity()}
+
+    def safe_state(self) -> list[str]:
+        """Lamp off and axes stopped, whatever fails on the way; returns the failures."""
+        problems = []
+        for what, action in (("lamp output off", lambda: self.lamp.set_output(False)),
+                             ("stop arm", self.arm.stop), ("stop stage", self.stage.stop)):
+            try:
+                action()
+            except Exception as exc:  # every step is attempted; each failure is reported
+                problems.append(f"{what}: {exc}")
+        return problems
+
+    def close(self) -> None:
+        for dev in (self.arm, self.stage, self.lamp, self.meter, self.camera):
+            try:
+                dev.close()
+            except Exception:  # closing is best effort once the rig is safe
+                pass

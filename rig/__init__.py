@@ -1,0 +1,3 @@
+"""rig: control and acquisition software for image-based BRDF goniophotometers."""
+
+__version__ = "0.1.0"

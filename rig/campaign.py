@@ -1,0 +1,229 @@
+"""Campaign files: pydantic models and a loader whose errors name key, value and what is allowed.
+
+The keys `name`, `sample`, `incidence`, `viewing` and `output` follow the contract
+in shared/spec/campaign.md; `capture`, `illuminance`, `lamp` and `limits` are
+this project's and are documented in the README and in the shipped campaigns.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator,
+                      model_validator)
+
+from rig.brdf_models import MODELS
+
+
+class CampaignError(ValueError):
+    """A campaign file that cannot be run; the message says where and why."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+Theta = Annotated[float, Field(ge=0.0, le=90.0)]
+Phi = Annotated[float, Field(ge=0.0, le=360.0)]
+
+
+class SimulatedBrdf(_Strict):
+    model: str
+    params: dict[str, float]
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, v: str) -> str:
+        if v not in MODELS:
+            raise ValueError(f"unknown model {v!r}; allowed: {', '.join(sorted(MODELS))}")
+        return v
+
+    @model_validator(mode="after")
+    def _params_match_model(self):
+        model = MODELS[self.model]
+        missing = [p for p in model.param_names if p not in self.params]
+        extra = [p for p in self.params if p not in model.param_names]
+        if missing or extra:
+            raise ValueError(f"{self.model} takes parameters {', '.join(model.param_names)}"
+                             + (f"; missing {', '.join(missing)}" if missing else "")
+                             + (f"; unknown {', '.join(extra)}" if extra else ""))
+        for name, value in self.params.items():
+            lo, hi = model.bounds[name]
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"{self.model} parameter {name} = {value} outside [{lo}, {hi}]")
+        return self
+
+
+class Sample(_Strict):
+    id: str
+    description: str = ""
+    simulated_brdf: SimulatedBrdf | None = None
+
+
+class IncidenceSeries(_Strict):
+    phi: Phi
+    theta: list[Annotated[float, Field(ge=0.0, lt=90.0)]] = Field(min_length=1)
+
+
+class CentredPattern(_Strict):
+    centred_on: Literal["incidence", "mirror", "normal"]
+    theta: list[Theta] = Field(min_length=1)
+    phi: list[Phi] = Field(min_length=1)
+
+
+class ExplicitViews(_Strict):
+    points: list[tuple[Theta, Phi]] = Field(min_length=1)
+
+
+def _view_kind(v: Any) -> str:
+    """An entry with `points` is a list of explicit directions; anything else is a pattern."""
+    if isinstance(v, dict):
+        return "explicit" if "points" in v else "pattern"
+    return "explicit" if isinstance(v, ExplicitViews) else "pattern"
+
+
+ViewSpec = Annotated[Union[Annotated[CentredPattern, Tag("pattern")], Annotated[ExplicitViews, Tag("explicit")]],
+                     Discriminator(_view_kind)]
+
+
+class Output(_Strict):
+    dir: str = "runs/campaign"
+
+
+class Capture(_Strict):
+    """HDR capture of one point (see rig.capture.CaptureSettings)."""
+
+    roi_px: int = Field(70, ge=4, le=1000)
+    probe_exposure_s: float = Field(0.002, gt=0)
+    target_fraction: float = Field(0.7, gt=0, le=0.95)
+    bracket_stops: float = Field(2.0, gt=0, le=6)
+    max_exposures: int = Field(5, ge=1, le=12)
+    frames_per_exposure: int = Field(1, ge=1, le=64)
+    min_snr: float = Field(10.0, ge=0)
+    save_images: bool = False
+
+
+class Illuminance(_Strict):
+    """E⊥ measurement: `readings` averaged at the start of every incidence series."""
+
+    readings: int = Field(5, ge=1, le=1000)
+
+
+class Lamp(_Strict):
+    """Warm-up: wait at least min_s, then until two readings check_s apart differ by < stable_rel."""
+
+    warmup_min_s: float = Field(300.0, ge=0)
+    warmup_max_s: float = Field(3600.0, gt=0)
+    warmup_check_s: float = Field(60.0, gt=0)
+    warmup_stable_rel: float = Field(0.002, gt=0)
+
+
+class Limits(_Strict):
+    max_view_theta_deg: float = Field(85.0, gt=0, le=90)
+    grazing_limit_deg: float = Field(88.0, gt=0, le=90)
+    skip_roi_unlit: bool = True
+
+
+class Campaign(_Strict):
+    name: str = Field(min_length=1)
+    sample: Sample
+    incidence: list[IncidenceSeries] = Field(min_length=1)
+    viewing: list[ViewSpec] = Field(min_length=1)
+    output: Output = Output()
+    capture: Capture = Capture()
+    illuminance: Illuminance = Illuminance()
+    lamp: Lamp = Lamp()
+    limits: Limits = Limits()
+
+
+_UNION_TAGS = {"pattern": CentredPattern, "explicit": ExplicitViews}
+
+
+def _describe_loc(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in _UNION_TAGS:   # union tags add nothing for a user
+            continue
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def _allowed_keys(loc: tuple) -> list[str] | None:
+    """Field names of the model an unknown key was found in, for the error message."""
+    model: Any = Campaign
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        if part in _UNION_TAGS:
+            model = _UNION_TAGS[part]
+            continue
+        field = getattr(model, "model_fields", {}).get(part)
+        if field is None:
+            return None
+        ann = field.annotation
+        candidates = [ann, *getattr(ann, "__args__", ())]
+        for arg in list(candidates):
+            candidates.extend(getattr(arg, "__args__", ()))
+        models = [c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)]
+        if not models:
+            return None
+        model = models[0]
+    return list(getattr(model, "model_fields", {}))
+
+
+def _format_errors(path: Path, err: ValidationError) -> str:
+    lines = []
+    seen = set()
+    for e in err.errors():
+        loc = e["loc"]
+        key = _describe_loc(loc)
+        if e["type"] == "extra_forbidden":
+            allowed = _allowed_keys(loc)
+            msg = f"unknown key '{key}'" + (f"; allowed here: {', '.join(allowed)}" if allowed else "")
+        else:
+            reason = e["msg"].removeprefix("Value error, ")
+            msg = f"key '{key}': value {e.get('input')!r} is not allowed: {reason}"
+        # A union reports the same key once per alternative; one line each is enough.
+        if msg not in seen:
+            seen.add(msg)
+            lines.append(msg)
+    return f"{path}: invalid campaign:\n  " + "\n  ".join(lines)
+
+
+def campaign_sha256(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def parse_campaign(data: Any, source: str | Path = "<campaign>") -> Campaign:
+    if not isinstance(data, dict):
+        raise CampaignError(f"{source}: a campaign must be a YAML mapping of keys, got {type(data).__name__}")
+    try:
+        return Campaign.model_validate(data)
+    except ValidationError as err:
+        raise CampaignError(_format_errors(Path(str(source)), err)) from None
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Read and validate a campaign file; raise CampaignError with one clear message."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise CampaignError(f"{path}: campaign file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{path}: cannot read campaign file: {exc}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise CampaignError(f"{path}: not valid YAML{where}: {problem}") from None
+    return parse_campaign(data, path)

@@ -1,0 +1,160 @@
+"""The dataset folder (contract: shared/spec/dataset.md), written so no completed point is lost.
+
+brdf.csv rows are appended and fsync'ed as each point completes; events.jsonl
+likewise; dataset.json is replaced atomically (temp file, fsync, rename,
+fsync of the folder), so a crash at any instant leaves readable files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+FORMAT = "rig-brdf-dataset"
+FORMAT_VERSION = "1.0"
+CONVENTIONS = "shared/spec/geometry.md (rig angle conventions, degrees, phi in [0, 360))"
+
+BRDF_COLUMNS = (
+    "point_id", "series", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg",
+    "brdf_per_sr", "u_brdf_per_sr", "luminance_cd_m2", "u_luminance_cd_m2",
+    "illuminance_lx", "illuminance_normal_lx",
+    "stage_vertical_deg", "stage_normal_deg", "arm_azimuth_deg", "arm_polar_deg",
+    "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
+    # project columns after the contract's
+    "u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames",
+)
+SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
+
+
+class DatasetError(RuntimeError):
+    """The output folder cannot be used; the message names it."""
+
+
+def utc_now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(value):
+            raise ValueError(f"refusing to write a non-finite number ({value})")
+        return repr(float(value))
+    if isinstance(value, (list, tuple)):
+        return ";".join(_cell(v) for v in value)
+    return str(value)
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def write_json_atomic(path: Path, data: Mapping[str, Any]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(data, fh, indent=2, sort_keys=False, default=_json_default)
+        fh.write("\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot store {type(obj).__name__} in JSON")
+
+
+class _AppendLog:
+    """A line-oriented file whose every line is on disk before append() returns."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._fh = open(path, "a", encoding="utf-8", newline="")
+
+    def append(self, line: str) -> None:
+        self._fh.write(line)
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def _csv_line(values: Iterable[Any]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([_cell(v) for v in values])
+    return buf.getvalue()
+
+
+class DatasetWriter:
+    """Creates a new dataset folder and appends to it; refuses to touch an existing dataset."""
+
+    def __init__(self, out_dir: str | Path, manifest: Mapping[str, Any]):
+        self.dir = Path(out_dir)
+        if self.dir.exists() and any(self.dir.iterdir()):
+            raise DatasetError(f"output folder {self.dir} already exists and is not empty; "
+                               "choose another --out (nothing was overwritten)")
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            probe = self.dir / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            raise DatasetError(f"output folder {self.dir} is not writable: {exc.strerror or exc}") from None
+        self.manifest: dict[str, Any] = {
+            "format": FORMAT, "format_version": FORMAT_VERSION, "conventions": CONVENTIONS,
+            "created_utc": utc_now(), "status": "running", **manifest}
+        write_json_atomic(self.dir / "dataset.json", self.manifest)
+        self._rows = _AppendLog(self.dir / "brdf.csv")
+        self._rows.append(_csv_line(BRDF_COLUMNS))
+        self._events = _AppendLog(self.dir / "events.jsonl")
+        self.n_rows = 0
+
+    def write_skipped(self, skipped: Iterable[Any]) -> None:
+        lines = [_csv_line(SKIPPED_COLUMNS)]
+        lines += [_csv_line(getattr(s, c) for c in SKIPPED_COLUMNS) for s in skipped]
+        path = self.dir / "skipped.csv"
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text("".join(lines), encoding="utf-8")
+        os.replace(tmp, path)
+
+    def append_row(self, row: Mapping[str, Any]) -> None:
+        missing = [c for c in BRDF_COLUMNS if c not in row]
+        if missing:
+            raise ValueError(f"row for point {row.get('point_id')} lacks {', '.join(missing)}")
+        self._rows.append(_csv_line(row[c] for c in BRDF_COLUMNS))
+        self.n_rows += 1
+
+    def event(self, kind: str, **fields: Any) -> None:
+        record = {"time_utc": utc_now(), "event": kind, **fields}
+        self._events.append(json.dumps(record, default=_json_default) + "\n")
+
+    def update_manifest(self, **changes: Any) -> None:
+        self.manifest.update(changes)
+        write_json_atomic(self.dir / "dataset.json", self.manifest)
+
+    def image_path(self, point_id: str) -> Path:
+        folder = self.dir / "images"
+        folder.mkdir(exist_ok=True)
+        return folder / f"{point_id}.exr"
+
+    def close(self) -> None:
+        self._rows.close()
+        self._events.close()

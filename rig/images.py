@@ -1,0 +1,32 @@
+"""HDR luminance images as single-channel float32 OpenEXR files (dataset.md, Images)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import OpenEXR
+
+
+def write_luminance_exr(path: str | Path, luminance_cd_m2: np.ndarray, metadata: Mapping[str, Any]) -> None:
+    """Write channel `Y` (cd/m²). Scalar float attributes are stored as 32-bit in EXR, so the
+    exact metadata also goes in as one JSON string attribute `rig_metadata`."""
+    # OpenEXR writes non-contiguous arrays scrambled without error (upstream #1929).
+    pixels = np.ascontiguousarray(luminance_cd_m2, dtype=np.float32)
+    header: dict[str, Any] = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+                              "rig_metadata": json.dumps(dict(metadata), default=float)}
+    for key, value in metadata.items():
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            header[key] = float(value)
+        elif isinstance(value, str):
+            header[key] = value
+    OpenEXR.File(header, {"Y": pixels}).write(str(path))
+
+
+def read_luminance_exr(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """(luminance image, metadata) of a file written by write_luminance_exr."""
+    exr = OpenEXR.File(str(path))
+    meta = json.loads(exr.header().get("rig_metadata", "{}"))
+    return np.array(exr.channels()["Y"].pixels, dtype=np.float32), meta

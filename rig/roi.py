@@ -1,0 +1,69 @@
+"""Statistics of the region of interest (ROI) of a merged luminance image.
+
+Pure numpy. The measurand is the mean luminance over the ROI. Its pixels are
+not independent: a road marking's glass beads and grains span several pixels,
+and the merged image's pixel noise sits on top of that texture. The standard
+uncertainty of the mean is therefore taken from the spread of means of blocks
+larger than a grain (10 × 10 px by default): block means are nearly
+independent, and their spread contains both the pixel noise and the texture,
+whereas std/√n would assume independent pixels and understate it by roughly
+the square root of the number of pixels per grain. The propagated per-pixel
+variance alone is reported next to it to show how much of the total is noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Side (px) of the blocks whose means give the uncertainty of the ROI mean.
+BLOCK_PX = 10
+
+
+@dataclass(frozen=True)
+class RoiStats:
+    """Summary of one ROI, in the image's unit (e.g. cd/m²)."""
+
+    mean: float
+    u_mean: float          # standard uncertainty of the mean from the spread of block means
+    u_mean_noise: float    # from the propagated per-pixel variance alone
+    std: float             # pixel standard deviation (texture + noise)
+    n: int                 # pixels
+    n_blocks: int          # whole blocks used for u_mean
+
+
+def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
+    """Means of the whole block_px × block_px blocks tiling `image` from its corner (flat)."""
+    rows, cols = image.shape[0] // block_px, image.shape[1] // block_px
+    tiles = image[:rows * block_px, :cols * block_px].reshape(rows, block_px, cols, block_px)
+    return tiles.mean(axis=(1, 3)).ravel()
+
+
+def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOCK_PX) -> RoiStats:
+    """Mean of an ROI image and its uncertainties.
+
+    Parameters
+    ----------
+    image : (H, W) array
+        ROI of the merged image.
+    variance : (H, W) array
+        Per-pixel variance of `image` (unit²), e.g. from the HDR merge.
+    block_px : int
+        Block side (px); it should exceed the texture's grain so that block
+        means are nearly independent. Pixels beyond the last whole block count
+        for the mean but not for u_mean.
+    """
+    image = np.asarray(image, dtype=float)
+    variance = np.asarray(variance, dtype=float)
+    if image.shape != variance.shape or image.ndim != 2:
+        raise ValueError(f"image {image.shape} and variance {variance.shape} must be the same 2-D shape")
+    means = block_means(image, block_px)
+    if means.size < 2:
+        raise ValueError(f"ROI {image.shape} holds fewer than two {block_px}×{block_px} px blocks")
+    n = image.size
+    return RoiStats(mean=float(image.mean()),
+                    u_mean=float(means.std(ddof=1) / np.sqrt(means.size)),
+                    u_mean_noise=float(np.sqrt(variance.sum()) / n),
+                    std=float(image.std(ddof=1)),
+                    n=n, n_blocks=int(means.size))

@@ -1,0 +1,62 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from rig.roi import block_means, roi_statistics
+
+
+def test_block_means_tile_from_the_corner_and_drop_partial_blocks():
+    image = np.arange(25.0).reshape(5, 5)
+    np.testing.assert_allclose(block_means(image, 2), [3.0, 5.0, 13.0, 15.0])
+
+
+def test_flat_image_closed_form():
+    stats = roi_statistics(np.full((30, 40), 5.0), np.full((30, 40), 4.0))
+    assert stats.mean == 5.0 and stats.u_mean == 0.0 and stats.std == 0.0
+    assert stats.u_mean_noise == pytest.approx(2.0 / np.sqrt(1200))
+    assert stats.n == 1200 and stats.n_blocks == 12
+
+
+def test_white_noise_block_and_propagated_uncertainties_agree():
+    rng = np.random.default_rng(0)
+    image = 100.0 + rng.normal(0, 3.0, (70, 70))
+    stats = roi_statistics(image, np.full(image.shape, 9.0))
+    assert stats.u_mean_noise == pytest.approx(3.0 / 70)
+    assert stats.u_mean == pytest.approx(stats.u_mean_noise, rel=0.35)    # 49 blocks: ±10 % (1σ)
+    assert stats.std == pytest.approx(3.0, rel=0.05)
+
+
+def test_block_uncertainty_covers_correlated_texture():
+    """5-px grains: pixels are correlated, std/√n understates the spread of ROI means ~5×."""
+    rng = np.random.default_rng(1)
+    means, u_block, u_naive = [], [], []
+    for _ in range(400):
+        grains = rng.normal(0, 0.1, (14, 14))
+        image = 1.0 + np.kron(grains, np.ones((5, 5))) + rng.normal(0, 0.01, (70, 70))
+        stats = roi_statistics(image, np.full(image.shape, 1e-4))
+        means.append(stats.mean)
+        u_block.append(stats.u_mean)
+        u_naive.append(stats.std / np.sqrt(stats.n))
+    spread = np.std(means, ddof=1)
+    assert np.sqrt(np.mean(np.square(u_block))) == pytest.approx(spread, rel=0.15)
+    assert np.mean(u_naive) < 0.4 * spread
+    assert np.mean(u_block) > 5 * stats.u_mean_noise
+
+
+def test_too_small_or_mismatched_rois_are_refused():
+    with pytest.raises(ValueError):
+        roi_statistics(np.ones((15, 15)), np.ones((15, 15)))
+    with pytest.raises(ValueError):
+        roi_statistics(np.ones((20, 20)), np.ones((20, 21)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(scale=st.floats(1e-3, 1e3), offset=st.floats(-1e3, 1e3), seed=st.integers(0, 2 ** 16))
+def test_statistics_follow_an_affine_change_of_unit(scale, offset, seed):
+    rng = np.random.default_rng(seed)
+    image, variance = rng.normal(1.0, 0.2, (30, 30)), rng.uniform(0.01, 0.1, (30, 30))
+    base = roi_statistics(image, variance)
+    moved = roi_statistics(scale * image + offset, scale ** 2 * variance)
+    assert moved.mean == pytest.approx(scale * base.mean + offset, rel=1e-9, abs=1e-9 * abs(offset))
+    for name in ("u_mean", "u_mean_noise", "std"):
+        assert getattr(moved, name) == pytest.approx(scale * getattr(base, name), rel=1e-6)
