@@ -1,0 +1,87 @@
+"""Line-based transport over pyserial URLs: serial ports, `socket://host:port`, `loop://`, pty paths.
+
+Both ASCII instruments (the SCPI lamp supply and the optometer) speak
+request/reply lines; this is the one place that frames lines, enforces the
+terminator (pyserial's readline returns partial data on timeout without
+raising), reconnects a dropped link and turns every failure into a
+`DeviceError` naming the device and what it answered.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import serial
+
+from drivers.interfaces import DeviceError
+
+EventSink = Callable[..., None]
+
+
+def _no_events(kind: str, **fields) -> None:
+    """Default event sink: drivers report retries and reconnects; nobody listens."""
+
+
+class LineTransport:
+    def __init__(self, device: str, url: str, *, terminator: bytes = b"\n", timeout_s: float = 2.0,
+                 baudrate: int = 9600, write_terminator: bytes | None = None):
+        self.device = device
+        self.url = url
+        self.terminator = terminator
+        self.write_terminator = terminator if write_terminator is None else write_terminator
+        self.timeout_s = timeout_s
+        self.baudrate = baudrate
+        self._port: serial.SerialBase | None = None
+
+    # -- connection ---------------------------------------------------------------------------
+    def open(self) -> None:
+        if self._port is not None:
+            return
+        try:
+            self._port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.timeout_s,
+                                               write_timeout=self.timeout_s)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise DeviceError(self.device, f"cannot open {self.url}: {exc}", transient=True) from None
+
+    def close(self) -> None:
+        if self._port is not None:
+            try:
+                self._port.close()
+            finally:
+                self._port = None
+
+    def reconnect(self) -> None:
+        self.close()
+        self.open()
+
+    # -- exchange ------------------------------------------------------------------------------
+    def write_line(self, line: str) -> None:
+        self.open()
+        try:
+            self._port.reset_input_buffer()      # a late reply to an earlier request must not pair with this one
+            self._port.write(line.encode("ascii") + self.write_terminator)
+            self._port.flush()
+        except (serial.SerialException, OSError) as exc:
+            self.close()
+            raise DeviceError(self.device, f"connection lost while sending {line!r}: {exc}", transient=True) from None
+
+    def read_line(self, request: str) -> str:
+        try:
+            raw = self._port.read_until(self.terminator)
+        except (serial.SerialException, OSError) as exc:
+            self.close()
+            raise DeviceError(self.device, f"connection lost waiting for the reply to {request!r}: {exc}",
+                              transient=True) from None
+        if not raw.endswith(self.terminator):
+            if raw == b"" and getattr(self._port, "is_open", True) is False:
+                self.close()
+            raise DeviceError(self.device, f"no complete reply to {request!r} within {self.timeout_s} s "
+                              f"(got {raw!r})", transient=True)
+        try:
+            return raw[:-len(self.terminator)].decode("ascii").strip()
+        except UnicodeDecodeError:
+            raise DeviceError(self.device, f"garbled reply to {request!r}: {raw!r}", transient=True) from None
+
+    def query(self, line: str) -> str:
+        self.write_line(line)
+        return self.read_line(line)
