@@ -269,6 +269,17 @@ class RigDevices:
                 "lamp": self.lamp.identity(), "meter": self.meter.identity(),
                 "camera": self.camera.identity()}
 
+    def route_events(self, sink) -> None:
+        """Send every driver's retry/reconnect events to `sink(kind, **fields)`.
+
+        Drivers that report events carry an `events` attribute; axes report through
+        the controller they share.
+        """
+        axes = (*self.arm.axes, *self.stage.axes)
+        for dev in (self.lamp, self.meter, self.camera, *(getattr(a, "controller", a) for a in axes)):
+            if hasattr(dev, "events"):
+                dev.events = sink
+
     def safe_state(self) -> list[str]:
         """Lamp off and axes stopped, whatever fails on the way; returns the failures."""
         problems = []

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import socket
+
 import serial
 
 from drivers.interfaces import DeviceError
@@ -18,7 +20,7 @@ from drivers.interfaces import DeviceError
 EventSink = Callable[..., None]
 
 
-def _no_events(kind: str, **fields) -> None:
+def no_events(kind: str, **fields) -> None:
     """Default event sink: drivers report retries and reconnects; nobody listens."""
 
 
@@ -42,13 +44,24 @@ class LineTransport:
                                                write_timeout=self.timeout_s)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise DeviceError(self.device, f"cannot open {self.url}: {exc}", transient=True) from None
+        tcp = getattr(self._port, "_socket", None)
+        if isinstance(tcp, socket.socket):
+            # A setting followed by its error-queue query is two small writes before a read:
+            # without TCP_NODELAY, Nagle + delayed ACK stall each exchange by ~40 ms.
+            tcp.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
     def close(self) -> None:
-        if self._port is not None:
-            try:
-                self._port.close()
-            finally:
-                self._port = None
+        if self._port is None:
+            return
+        port, self._port = self._port, None
+        tcp = getattr(port, "_socket", None)
+        if isinstance(tcp, socket.socket):
+            # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a reconnect
+            # after a dropped link should not cost that, so release the socket here.
+            tcp.close()
+            port._socket = None
+            port.is_open = False
+        port.close()
 
     def reconnect(self) -> None:
         self.close()

@@ -12,14 +12,13 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-import yaml
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator,
-                      model_validator)
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
 
 from rig.brdf_models import MODELS
+from rig.configfile import ConfigFileError, parse_model, read_yaml
 
 
-class CampaignError(ValueError):
+class CampaignError(ConfigFileError):
     """A campaign file that cannot be run; the message says where and why."""
 
 
@@ -143,87 +142,14 @@ class Campaign(_Strict):
 _UNION_TAGS = {"pattern": CentredPattern, "explicit": ExplicitViews}
 
 
-def _describe_loc(loc: tuple) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif part in _UNION_TAGS:   # union tags add nothing for a user
-            continue
-        else:
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
-def _allowed_keys(loc: tuple) -> list[str] | None:
-    """Field names of the model an unknown key was found in, for the error message."""
-    model: Any = Campaign
-    for part in loc[:-1]:
-        if isinstance(part, int):
-            continue
-        if part in _UNION_TAGS:
-            model = _UNION_TAGS[part]
-            continue
-        field = getattr(model, "model_fields", {}).get(part)
-        if field is None:
-            return None
-        ann = field.annotation
-        candidates = [ann, *getattr(ann, "__args__", ())]
-        for arg in list(candidates):
-            candidates.extend(getattr(arg, "__args__", ()))
-        models = [c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)]
-        if not models:
-            return None
-        model = models[0]
-    return list(getattr(model, "model_fields", {}))
-
-
-def _format_errors(path: Path, err: ValidationError) -> str:
-    lines = []
-    seen = set()
-    for e in err.errors():
-        loc = e["loc"]
-        key = _describe_loc(loc)
-        if e["type"] == "extra_forbidden":
-            allowed = _allowed_keys(loc)
-            msg = f"unknown key '{key}'" + (f"; allowed here: {', '.join(allowed)}" if allowed else "")
-        else:
-            reason = e["msg"].removeprefix("Value error, ")
-            msg = f"key '{key}': value {e.get('input')!r} is not allowed: {reason}"
-        # A union reports the same key once per alternative; one line each is enough.
-        if msg not in seen:
-            seen.add(msg)
-            lines.append(msg)
-    return f"{path}: invalid campaign:\n  " + "\n  ".join(lines)
-
-
 def campaign_sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def parse_campaign(data: Any, source: str | Path = "<campaign>") -> Campaign:
-    if not isinstance(data, dict):
-        raise CampaignError(f"{source}: a campaign must be a YAML mapping of keys, got {type(data).__name__}")
-    try:
-        return Campaign.model_validate(data)
-    except ValidationError as err:
-        raise CampaignError(_format_errors(Path(str(source)), err)) from None
+    return parse_model(data, Campaign, source=source, what="campaign", error=CampaignError, tags=_UNION_TAGS)
 
 
 def load_campaign(path: str | Path) -> Campaign:
     """Read and validate a campaign file; raise CampaignError with one clear message."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CampaignError(f"{path}: campaign file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{path}: cannot read campaign file: {exc}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise CampaignError(f"{path}: not valid YAML{where}: {problem}") from None
-    return parse_campaign(data, path)
+    return parse_campaign(read_yaml(path, "campaign", CampaignError), path)

@@ -1,4 +1,4 @@
-"""Command line: `rig run CAMPAIGN.yaml`, `rig plan CAMPAIGN.yaml`."""
+"""Command line: `rig run`, `rig plan`, `rig devices`."""
 
 from __future__ import annotations
 
@@ -8,11 +8,14 @@ import time
 from pathlib import Path
 
 from rig import __version__
-from rig.campaign import Campaign, CampaignError, campaign_sha256, load_campaign
+from drivers.interfaces import DeviceError, RigDevices
+from rig.campaign import Campaign, campaign_sha256, load_campaign
 from rig.dataset import DatasetError, DatasetWriter
 from rig.plan import SKIP_REASONS, Plan, build_plan, estimate_rig_time_s
 from rig.progress import ProgressBar, format_duration
-from rig.rigconfig import RigConfig
+from rig.configfile import ConfigFileError
+from rig.connect import open_rig
+from rig.rigconfig import RigConfig, load_rig_config
 from rig.runner import Runner
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -58,29 +61,62 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
           "exposures depend on the sample)")
 
 
+def _rig_config(args) -> RigConfig:
+    """The --rig file, or the built-in simulated rig."""
+    return load_rig_config(args.rig) if args.rig else RigConfig()
+
+
 def _load(args) -> tuple[Campaign, RigConfig, Plan]:
     campaign = load_campaign(args.campaign)
-    rig = RigConfig()
+    rig = _rig_config(args)
     return campaign, rig, build_plan(campaign, rig)
 
 
 def cmd_plan(args) -> int:
     try:
         campaign, rig, plan = _load(args)
-    except CampaignError as exc:
+    except ConfigFileError as exc:
         return _fail(str(exc))
     print_plan(plan, campaign, rig)
     return EXIT_OK
 
 
-def cmd_run(args) -> int:
-    from simulators.rig import build_simulated_rig   # the simulated rig is the default rig
+def print_devices(devices: RigDevices) -> None:
+    """Identity and state of every device; reads only, moves nothing."""
+    for role, identity in devices.identities().items():
+        print(f"{role:6s}  {identity}")
+    for positioner in (devices.arm, devices.stage):
+        positions = ", ".join(f"{ax.name} {ax.position_deg():.3f}°{' (moving)' if ax.is_moving() else ''}"
+                              for ax in positioner.axes)
+        print(f"        {positioner.name}: {positions}")
+    lamp = devices.lamp
+    print(f"        lamp: output {'ON' if lamp.output_is_on() else 'off'}, {lamp.measure_current_a():.3f} A, "
+          f"{lamp.measure_voltage_v():.3f} V")
+    s = devices.camera.sensor
+    print(f"        camera: {s.width_px}×{s.height_px} px, {s.bit_depth} bit, exposures "
+          f"{s.min_exposure_s:g}–{s.max_exposure_s:g} s")
 
+
+def cmd_devices(args) -> int:
+    try:
+        rig = load_rig_config(args.rig_file)
+        with open_rig(rig) as devices:
+            print(f"rig {rig.name} ({'simulated' if rig.simulated else 'hardware'})")
+            print_devices(devices)
+    except ConfigFileError as exc:
+        return _fail(str(exc))
+    except DeviceError as exc:
+        print(f"rig: device error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def cmd_run(args) -> int:
     try:
         campaign, rig, plan = _load(args)
-    except CampaignError as exc:
+    except ConfigFileError as exc:
         return _fail(str(exc))
-    if campaign.sample.simulated_brdf is None:
+    if rig.simulated and campaign.sample.simulated_brdf is None:
         return _fail(f"{args.campaign}: key 'sample.simulated_brdf' is required on the simulated rig "
                      "(the sample's true BRDF: model and params)")
     if not plan.points:
@@ -93,21 +129,25 @@ def cmd_run(args) -> int:
         return _fail(str(exc))
     writer.write_skipped(plan.skipped)
     truth = campaign.sample.simulated_brdf
-    devices, _world = build_simulated_rig(rig, truth.model, truth.params)
-    print(f"rig {__version__}: {campaign.name} on the simulated rig → {out} "
+    where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
+    print(f"rig {__version__}: {campaign.name} on {where} → {out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
     wall0 = time.perf_counter()
-    runner = Runner(campaign, plan, devices, writer, rig,
-                    progress=None if args.quiet else ProgressBar())
+    runner = None
     try:
-        status = runner.run()
+        with open_rig(rig, truth.model if truth else None, truth.params if truth else None) as devices:
+            runner = Runner(campaign, plan, devices, writer, rig,
+                            progress=None if args.quiet else ProgressBar())
+            status = runner.run()
     except Exception as exc:
-        print(f"rig: campaign failed: {exc}; {runner.measured} completed points kept in {out}",
-              file=sys.stderr)
+        kept = runner.measured if runner else 0
+        if runner is None:       # the rig never came up, so no runner recorded the failure
+            writer.event("failed", error=str(exc))
+            writer.update_manifest(status="failed", error=str(exc))
+        print(f"rig: campaign failed: {exc}; {kept} completed points kept in {out}", file=sys.stderr)
         return EXIT_FAILED
     finally:
         writer.close()
-        devices.close()
     wall = time.perf_counter() - wall0
     print(f"{status}: {runner.measured} points measured, {len(plan.skipped)} skipped; "
           f"rig time {format_duration(runner.rig_time())}, wall time {wall:.1f} s; dataset in {out}",
@@ -119,14 +159,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rig", description=__doc__)
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    p_run = sub.add_parser("run", help="measure a campaign (on the built-in simulated rig)")
+    p_run = sub.add_parser("run", help="measure a campaign (by default on the built-in simulated rig)")
     p_run.add_argument("campaign", help="campaign YAML file")
     p_run.add_argument("--out", help="dataset folder (default: output.dir of the campaign)")
+    p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
     p_run.add_argument("--quiet", action="store_true", help="no progress bar")
     p_run.set_defaults(func=cmd_run)
     p_plan = sub.add_parser("plan", help="print the plan: points, skipped points by reason, rig time")
     p_plan.add_argument("campaign", help="campaign YAML file")
+    p_plan.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
     p_plan.set_defaults(func=cmd_plan)
+    p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
+    p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
+    p_dev.set_defaults(func=cmd_devices)
     return parser
 
 

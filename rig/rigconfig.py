@@ -8,12 +8,14 @@ would not know (noise realisations, lamp physics, sample texture).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+from typing import Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivers.interfaces import SensorInfo
+from rig.configfile import ConfigFileError, parse_model, read_yaml
 from rig.geometry import AxisLimits
 
 
@@ -122,9 +124,55 @@ class SimulationConfig(_Strict):
     ambient_cd_m2: float = Field(0.0, ge=0)              # stray light on unlit parts
 
 
+class PositionerDevice(_Strict):
+    """A two-axis motion controller (goniometer arm or sample stage) speaking Modbus."""
+
+    driver: Literal["modbus-axis"] = "modbus-axis"
+    #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N`;
+    #: `auto` on the simulated rig (its peers pick free loopback ports).
+    address: str = "auto"
+    device_id: int = Field(1, ge=0, le=247)
+    steps_per_degree: float = Field(1000.0, gt=0)
+    timeout_s: float = Field(1.0, gt=0)
+
+
+class LampDevice(_Strict):
+    driver: Literal["delta-sm"] = "delta-sm"
+    address: str = "auto"                       # e.g. socket://192.168.1.20:8462 or /dev/ttyUSB1
+    timeout_s: float = Field(1.0, gt=0)
+
+
+class MeterDevice(_Strict):
+    driver: Literal["p9710"] = "p9710"
+    address: str = "auto"                       # e.g. /dev/ttyUSB0
+    timeout_s: float = Field(1.0, gt=0)
+
+
+class CameraDevice(_Strict):
+    """`simulated`, or `python:package.module:Class` for a vendor-SDK driver (see docs/camera-drivers.md)."""
+
+    driver: str = "simulated"
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _known_driver(self):
+        if self.driver != "simulated" and not re.fullmatch(r"python:[\w.]+:\w+", self.driver):
+            raise ValueError(f"camera driver {self.driver!r}: use 'simulated' or 'python:package.module:Class'")
+        return self
+
+
+class DevicesConfig(_Strict):
+    arm: PositionerDevice = PositionerDevice()
+    stage: PositionerDevice = PositionerDevice()
+    lamp: LampDevice = LampDevice()
+    meter: MeterDevice = MeterDevice()
+    camera: CameraDevice = CameraDevice()
+
+
 class RigConfig(_Strict):
     name: str = "simulated"
     simulated: bool = True
+    devices: DevicesConfig = DevicesConfig()
     geometry: GeometryConfig = GeometryConfig()
     axes: AxesConfig = AxesConfig()
     camera: CameraConfig = CameraConfig()
@@ -133,7 +181,11 @@ class RigConfig(_Strict):
     simulation: SimulationConfig = SimulationConfig()
 
 
+class RigConfigError(ConfigFileError):
+    """A rig file that cannot be used."""
+
+
 def load_rig_config(path: str | Path) -> RigConfig:
-    with open(path, encoding="utf-8") as fh:
-        data = yaml.safe_load(fh) or {}
-    return RigConfig.model_validate(data)
+    """Read and validate a rig file; raise RigConfigError with one clear message."""
+    return parse_model(read_yaml(path, "rig", RigConfigError), RigConfig, source=path, what="rig configuration",
+                       error=RigConfigError)

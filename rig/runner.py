@@ -74,10 +74,16 @@ class Runner:
         self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure)
         self.optics = CameraOptics.from_config(rig)
         self.t0 = devices.clock.now()
-        self.position = tuple(self._read_back())
         self.measured = 0
+        devices.route_events(self._device_event)
+        self.position = tuple(self._read_back())
 
     # -- helpers -----------------------------------------------------------------------------
+    def _device_event(self, kind: str, **fields) -> None:
+        """A driver's retry or reconnect: into events.jsonl and onto the progress line."""
+        self.writer.event(kind, rig_time_s=self.rig_time(), **fields)
+        self._report(f"{kind} {fields.get('device', '')}: {fields.get('what', '')}")
+
     def rig_time(self) -> float:
         return self.dev.clock.now() - self.t0
 

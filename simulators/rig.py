@@ -1,30 +1,69 @@
-"""Assemble the built-in simulated rig: five simulated devices on one SimWorld."""
+"""The built-in simulated rig: protocol peers on loopback and the real drivers connected to them.
+
+Two Modbus axis controllers (arm, stage), a SCPI lamp supply on TCP and a P9710
+optometer on a pseudo-terminal, all driving one SimWorld on one SimClock; the
+camera, which has no public wire protocol, is the in-process SimCamera. The
+application sees exactly the drivers it would use on hardware.
+"""
 
 from __future__ import annotations
 
 from typing import Mapping
 
-from drivers.interfaces import RigDevices, TwoAxisPositioner
+from drivers.factory import POSITIONER_AXES, connect_devices
+from drivers.interfaces import RigDevices
 from rig.brdf_models import get_model
 from rig.rigconfig import RigConfig
 from simulators.camera import SimCamera
-from simulators.devices import SimAxis, SimIlluminanceMeter, SimLampSupply
+from simulators.delta_sm_peer import DeltaSMPeer
+from simulators.modbus_axis_server import ModbusAxisServer
+from simulators.p9710_peer import P9710Peer
 from simulators.world import SimWorld
 
 
-def build_simulated_rig(config: RigConfig, brdf_model: str,
-                        brdf_params: Mapping[str, float]) -> tuple[RigDevices, SimWorld]:
-    """Devices plus the world behind them (tests compare against the world's truth)."""
-    world = SimWorld(config, get_model(brdf_model), brdf_params)
-    axes = {name: SimAxis(world, name, getattr(config.axes, name))
-            for name in ("stage_vertical", "stage_normal", "arm_azimuth", "arm_polar")}
-    devices = RigDevices(
-        arm=TwoAxisPositioner("arm", axes["arm_azimuth"], axes["arm_polar"]),
-        stage=TwoAxisPositioner("stage", axes["stage_vertical"], axes["stage_normal"]),
-        lamp=SimLampSupply(world),
-        meter=SimIlluminanceMeter(world),
-        camera=SimCamera(world),
-        clock=world.clock,
-        simulated=True,
-    )
-    return devices, world
+class SimulatedRig:
+    """Context manager: `with SimulatedRig(cfg, "retrophong", params) as sim: sim.devices ...`.
+
+    `sim.world` is the truth (for tests), `sim.peers` the protocol peers (for fault injection).
+    """
+
+    def __init__(self, config: RigConfig, brdf_model: str, brdf_params: Mapping[str, float]):
+        self.config = config
+        self.world = SimWorld(config, get_model(brdf_model), brdf_params)
+        d = config.devices
+        self.peers = {
+            name: ModbusAxisServer(self.world, [(axis, getattr(config.axes, axis)) for axis in axes],
+                                   steps_per_degree=getattr(d, name).steps_per_degree,
+                                   device_id=getattr(d, name).device_id)
+            for name, axes in POSITIONER_AXES.items()
+        }
+        self.peers["lamp"] = DeltaSMPeer(self.world)
+        self.peers["meter"] = P9710Peer(self.world)
+        self.devices: RigDevices | None = None
+
+    def start(self) -> RigDevices:
+        try:
+            addresses = {name: peer.start() for name, peer in self.peers.items()}
+            d = self.config.devices
+            wired = d.model_copy(update={name: getattr(d, name).model_copy(update={"address": address})
+                                         for name, address in addresses.items()})
+            config = self.config.model_copy(update={"devices": wired})
+            self.devices = connect_devices(config, self.world.clock, camera=SimCamera(self.world))
+        except BaseException:
+            self.stop()
+            raise
+        return self.devices
+
+    def stop(self) -> None:
+        if self.devices is not None:
+            self.devices.close()
+            self.devices = None
+        for peer in self.peers.values():
+            peer.stop()
+
+    def __enter__(self) -> "SimulatedRig":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

@@ -7,7 +7,6 @@ them. Nothing here knows about protocols.
 
 from __future__ import annotations
 
-import math
 from typing import Callable, Mapping
 
 import numpy as np
@@ -16,51 +15,7 @@ from rig.brdf_models import BrdfModel
 from rig.geometry import AXIS_NAMES
 from rig.rigconfig import RigConfig
 from simulators.clock import SimClock
-
-
-class LampPhysics:
-    """Halogen lamp on a constant-current supply: light ∝ I^p, warm-up and ageing drift."""
-
-    def __init__(self, clock: SimClock, nominal_current_a: float, exponent: float,
-                 warmup_amplitude: float, warmup_tau_s: float, drift_per_hour: float):
-        self.clock = clock
-        self.nominal_current_a = nominal_current_a
-        self.exponent = exponent
-        self.warmup_amplitude = warmup_amplitude
-        self.warmup_tau_s = warmup_tau_s
-        self.drift_per_hour = drift_per_hour
-        self.output_on = False
-        self._on_since = 0.0
-        self._ramp = (0.0, 0.0, 0.0, 0.0)   # (t0, t1, i0, i1)
-
-    def set_current(self, current_a: float, ramp_s: float) -> None:
-        now = self.clock.now()
-        self._ramp = (now, now + ramp_s, self.current_a(now), current_a)
-
-    def current_setpoint_a(self) -> float:
-        return self._ramp[3]
-
-    def current_a(self, t: float | None = None) -> float:
-        t = self.clock.now() if t is None else t
-        t0, t1, i0, i1 = self._ramp
-        if t >= t1 or t1 <= t0:
-            return i1
-        return i0 + (i1 - i0) * max(t - t0, 0.0) / (t1 - t0)
-
-    def switch(self, on: bool) -> None:
-        if on and not self.output_on:
-            self._on_since = self.clock.now()
-        self.output_on = on
-
-    def relative_output(self, t: float | None = None) -> float:
-        """Light output relative to a warm lamp at nominal current."""
-        t = self.clock.now() if t is None else t
-        if not self.output_on:
-            return 0.0
-        age = max(t - self._on_since, 0.0)
-        warm = 1.0 + self.warmup_amplitude * math.exp(-age / self.warmup_tau_s)
-        drift = 1.0 + self.drift_per_hour * age / 3600.0
-        return (self.current_a(t) / self.nominal_current_a) ** self.exponent * warm * drift
+from simulators.lamp import LampPhysics
 
 
 class SimWorld:

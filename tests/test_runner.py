@@ -1,4 +1,8 @@
-"""Run engine exits: completed points are kept, lamp off and axes stopped on every path."""
+"""Run engine over the protocol rig: completed points kept, lamp off and axes stopped on every path.
+
+Faults are injected into the simulators' protocol peers (Modbus, SCPI, serial) while the
+campaign runs, from the progress callback; the camera, an in-process device, is wrapped.
+"""
 
 import csv
 import json
@@ -16,7 +20,7 @@ from rig.images import read_luminance_exr
 from rig.plan import build_plan
 from rig.rigconfig import RigConfig
 from rig.runner import Runner
-from simulators.rig import build_simulated_rig
+from simulators.rig import SimulatedRig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,22 +54,26 @@ class FailingCapture:
         return self._camera.capture(exposure_s, window)
 
 
-def run(tmp_path, campaign, fault=None):
+def run(tmp_path, campaign, camera_fault=None, inject=None):
+    """Run `campaign`; `inject(peers, n_done)` is called after every point."""
     rig = RigConfig()
     plan = build_plan(campaign, rig)
     truth = campaign.sample.simulated_brdf
-    devices, world = build_simulated_rig(rig, truth.model, truth.params)
-    if fault is not None:
-        devices.camera = fault(devices.camera)
     writer = DatasetWriter(tmp_path / "ds", {"campaign": {"name": campaign.name}})
-    runner = Runner(campaign, plan, devices, writer, rig)
-    try:
-        status = runner.run()
-        error = None
-    except Exception as exc:
-        status, error = "raised", exc
+    with SimulatedRig(rig, truth.model, truth.params) as sim:
+        if camera_fault is not None:
+            sim.devices.camera = camera_fault(sim.devices.camera)
+        progress = (lambda p: inject(sim.peers, p.done)) if inject else None
+        runner = Runner(campaign, plan, sim.devices, writer, rig, progress=progress)
+        try:
+            status, error = runner.run(), None
+        except Exception as exc:
+            status, error = "raised", exc
+        sim.world.clock.sleep(1.0)        # a stopped axis settles; one still running would not be done
+        moving = [ax.name for ax in (*sim.devices.stage.axes, *sim.devices.arm.axes) if ax.is_moving()]
+        lamp_on = sim.world.lamp.output_on
     writer.close()
-    return status, error, runner, world, plan
+    return status, error, runner, plan, lamp_on, moving
 
 
 def rows(folder):
@@ -77,33 +85,82 @@ def events(folder):
     return [json.loads(l) for l in (folder / "events.jsonl").read_text().splitlines()]
 
 
-def test_complete_run_switches_lamp_off(tmp_path):
-    status, _, runner, world, plan = run(tmp_path, small_campaign())
-    assert status == "complete"
-    assert not world.lamp.output_on
-    assert not any(ax.is_moving() for ax in (*runner.dev.stage.axes, *runner.dev.arm.axes))
-    assert len(rows(tmp_path / "ds")) == len(plan.points) == 16
+def at_point(n, action):
+    """An inject callback that runs `action(peers)` once, after the n-th point.
+
+    Progress is also reported on retries, with the same count: fire only once.
+    """
+    fired = []
+
+    def inject(peers, done):
+        if done == n and not fired:
+            fired.append(done)
+            action(peers)
+    return inject
 
 
-def test_persistent_device_failure_keeps_points_and_makes_safe(tmp_path):
-    err = DeviceError("camera", "no answer after 3 s", transient=False)
-    status, error, runner, world, plan = run(
-        tmp_path, small_campaign(), lambda cam: FailingCapture(cam, at=20, error=err, persistent=True))
-    assert status == "raised" and error is err
+def assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, message):
     kept = rows(tmp_path / "ds")
     assert 0 < len(kept) < len(plan.points) and len(kept) == runner.measured
     manifest = json.loads((tmp_path / "ds" / "dataset.json").read_text())
-    assert manifest["status"] == "failed" and "camera: no answer" in manifest["error"]
+    assert manifest["status"] == "failed" and message in manifest["error"]
     assert manifest["counts"]["measured"] == len(kept)
-    assert not world.lamp.output_on
+    assert not lamp_on and not moving
     ev = events(tmp_path / "ds")
     assert ev[-2]["event"] == "failed" and ev[-1]["event"] == "safe_state" and ev[-1]["lamp_off"]
 
 
-def test_transient_failure_is_retried_and_flagged(tmp_path):
+def test_complete_run_switches_lamp_off(tmp_path):
+    status, _, runner, plan, lamp_on, moving = run(tmp_path, small_campaign())
+    assert status == "complete"
+    assert not lamp_on and not moving
+    assert len(rows(tmp_path / "ds")) == len(plan.points) == 16
+    identities = events(tmp_path / "ds")[0]["identities"]
+    assert identities["lamp"].startswith("DELTA ELEKTRONIKA") and "P9710" in identities["meter"]
+
+
+def test_persistent_camera_failure_keeps_points_and_makes_safe(tmp_path):
+    err = DeviceError("camera", "no answer after 3 s", transient=False)
+    status, error, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), camera_fault=lambda cam: FailingCapture(cam, at=20, error=err, persistent=True))
+    assert status == "raised" and error is err
+    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "camera: no answer")
+
+
+def test_modbus_exception_stops_cleanly_naming_the_axis(tmp_path):
+    status, error, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), inject=at_point(5, lambda peers: peers["arm"].inject("exception")))
+    assert status == "raised" and "Modbus exception" in str(error)
+    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "Modbus exception")
+
+
+def test_axis_alarm_stops_cleanly(tmp_path):
+    status, error, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), inject=at_point(3, lambda peers: peers["arm"].inject("alarm", axis=1)))
+    assert status == "raised" and "alarm 0x10" in str(error)
+    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "alarm 0x10")
+
+
+@pytest.mark.parametrize("peer, fault", [("arm", "no_reply"), ("stage", "disconnect"), ("arm", "garbled"),
+                                         ("lamp", "garbled"), ("lamp", "disconnect"), ("meter", "short"),
+                                         ("meter", "overrange")])
+def test_transient_protocol_faults_cost_a_retry_event(tmp_path, peer, fault):
+    """The lamp's next exchange is switching off at the end, the meter's the next series' E⊥."""
+    campaign = small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])
+    status, _, runner, plan, lamp_on, moving = run(
+        tmp_path, campaign, inject=at_point(4, lambda peers: peers[peer].inject(fault)))
+    assert status == "complete"
+    assert len(rows(tmp_path / "ds")) == len(plan.points)
+    assert not lamp_on and not moving
+    retries = [e for e in events(tmp_path / "ds") if e["event"] == "retry"]
+    assert len(retries) == 1
+    assert retries[0]["device"] in (peer, "arm_azimuth", "arm_polar", "stage_vertical", "stage_normal")
+
+
+def test_transient_camera_failure_is_retried_and_flagged(tmp_path):
     err = DeviceError("camera", "garbled reply", transient=True)
-    status, _, runner, world, plan = run(
-        tmp_path, small_campaign(), lambda cam: FailingCapture(cam, at=10, error=err, persistent=False))
+    status, _, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), camera_fault=lambda cam: FailingCapture(cam, at=10, error=err, persistent=False))
     assert status == "complete"
     got = rows(tmp_path / "ds")
     assert len(got) == len(plan.points)
@@ -112,21 +169,21 @@ def test_transient_failure_is_retried_and_flagged(tmp_path):
 
 
 def test_interrupt_marks_status_and_makes_safe(tmp_path):
-    status, _, runner, world, plan = run(
+    status, _, runner, plan, lamp_on, moving = run(
         tmp_path, small_campaign(),
-        lambda cam: FailingCapture(cam, at=15, error=KeyboardInterrupt(), persistent=False))
+        camera_fault=lambda cam: FailingCapture(cam, at=15, error=KeyboardInterrupt(), persistent=False))
     assert status == "interrupted"
     manifest = json.loads((tmp_path / "ds" / "dataset.json").read_text())
     assert manifest["status"] == "interrupted"
     assert manifest["counts"]["measured"] == len(rows(tmp_path / "ds")) > 0
-    assert not world.lamp.output_on
+    assert not lamp_on and not moving
 
 
 def test_images_are_written_when_asked(tmp_path):
     campaign = small_campaign(capture={"save_images": True},
                               incidence=[{"phi": 0, "theta": [30]}],
                               viewing=[{"points": [[20, 180], [40, 90]]}])
-    status, _, runner, world, plan = run(tmp_path, campaign)
+    status, _, runner, plan, lamp_on, moving = run(tmp_path, campaign)
     assert status == "complete"
     got = rows(tmp_path / "ds")
     for r in got:
