@@ -17,6 +17,11 @@ POSITIONER_AXES = {"arm": ("arm_azimuth", "arm_polar"), "stage": ("stage_vertica
 def _positioner(config: RigConfig, which: str, dev: PositionerDevice, clock: Clock) -> TwoAxisPositioner:
     controller = ModbusAxisController(dev.address, device_id=dev.device_id, name=which, clock=clock,
                                       timeout_s=dev.timeout_s)
+    try:
+        controller.identity()    # connect now: a wrong address should fail here, not at the first move
+    except BaseException:
+        controller.close()
+        raise
     axes = []
     for index, axis_name in enumerate(POSITIONER_AXES[which]):
         cfg = getattr(config.axes, axis_name)

@@ -61,6 +61,8 @@ class Runner:
     #: Moves may take this much longer than predicted before the axis counts as stuck.
     MOVE_TIMEOUT_FACTOR = 2.0
     MOVE_TIMEOUT_MARGIN_S = 10.0
+    #: Lamp current below this fraction of the setpoint stops the run (burn-out, open circuit).
+    LAMP_CURRENT_MIN_FRACTION = 0.5
 
     def __init__(self, campaign: Campaign, plan: Plan, devices: RigDevices, writer: DatasetWriter,
                  rig: RigConfig, progress: ProgressCallback | None = None):
@@ -137,11 +139,23 @@ class Runner:
                 return
             previous = now
 
+    def _check_lamp(self) -> None:
+        """A burnt-out filament or an open lead shows as output current far below the setpoint."""
+        current = self.dev.lamp.measure_current_a()
+        wanted = self.rig.lamp.current_a
+        if current < self.LAMP_CURRENT_MIN_FRACTION * wanted:
+            voltage = self.dev.lamp.measure_voltage_v()
+            raise DeviceError("lamp", f"output current {current:.3f} A at {voltage:.2f} V with {wanted:.3f} A set: "
+                                      "lamp burnt out or circuit open")
+
     def _measure_illuminance(self, series: int) -> IlluminanceEstimate:
         n = self.campaign.illuminance.readings
         readings = [self.dev.meter.read() for _ in range(n)]
         values = np.array([r.illuminance_lx for r in readings])
         mean = float(values.mean())
+        if not mean > 0:
+            raise DeviceError("meter", f"E⊥ reads {mean:g} lx (photocurrent {readings[0].photocurrent_a:g} A): "
+                                       "no light on the detector")
         if n >= 2:
             u_stat = float(values.std(ddof=1) / math.sqrt(n))
         else:
@@ -155,6 +169,7 @@ class Runner:
 
     def _measure_point(self, point: PlannedPoint, e_perp: IlluminanceEstimate) -> dict:
         self._move(point.motors_deg)
+        self._check_lamp()
         motors = self._read_back()
         achieved = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg,
                                    phi_o_at_pole_deg=point.phi_o_deg)

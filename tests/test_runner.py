@@ -157,6 +157,22 @@ def test_transient_protocol_faults_cost_a_retry_event(tmp_path, peer, fault):
     assert retries[0]["device"] in (peer, "arm_azimuth", "arm_polar", "stage_vertical", "stage_normal")
 
 
+def test_lamp_burnout_stops_cleanly_naming_the_lamp(tmp_path):
+    status, error, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), inject=at_point(6, lambda peers: peers["lamp"].inject("burnout")))
+    assert status == "raised" and str(error).startswith("lamp: output current 0.000 A")
+    assert runner.measured == 6          # nothing measured in the dark after the burn-out
+    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "lamp burnt out")
+
+
+def test_lamp_error_queue_entry_is_reported_and_lamp_still_switched_off(tmp_path):
+    status, _, runner, plan, lamp_on, moving = run(
+        tmp_path, small_campaign(), inject=at_point(2, lambda peers: peers["lamp"].inject("error_queue")))
+    assert not lamp_on and not moving
+    kinds = [e["event"] for e in events(tmp_path / "ds")]
+    assert status == "complete" and "device_errors" in kinds
+
+
 def test_transient_camera_failure_is_retried_and_flagged(tmp_path):
     err = DeviceError("camera", "garbled reply", transient=True)
     status, _, runner, plan, lamp_on, moving = run(
