@@ -12,6 +12,7 @@ import io
 import json
 import math
 import os
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -158,3 +159,79 @@ class DatasetWriter:
     def close(self) -> None:
         self._rows.close()
         self._events.close()
+
+
+#: Units of the brdf.csv columns, for notebooks and exporters.
+UNITS = {
+    "theta_i_deg": "deg", "phi_i_deg": "deg", "theta_o_deg": "deg", "phi_o_deg": "deg",
+    "brdf_per_sr": "1/sr", "u_brdf_per_sr": "1/sr", "luminance_cd_m2": "cd/m2", "u_luminance_cd_m2": "cd/m2",
+    "illuminance_lx": "lx", "illuminance_normal_lx": "lx", "u_illuminance_normal_lx": "lx",
+    "stage_vertical_deg": "deg", "stage_normal_deg": "deg", "arm_azimuth_deg": "deg", "arm_polar_deg": "deg",
+    "exposures_s": "s", "saturated_fraction": "1", "rig_time_s": "s", "roi_std_cd_m2": "cd/m2",
+}
+_TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A dataset folder in memory: numeric columns as float arrays, the rest as lists of strings."""
+
+    path: Path
+    manifest: dict
+    columns: dict[str, np.ndarray]
+    point_id: list[str]
+    flags: list[tuple[str, ...]]
+    skipped: list[dict]
+
+    def __len__(self) -> int:
+        return len(self.point_id)
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.columns[column]
+
+    def directions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ωi, ωo) as SCS unit vectors (N, 3) from the achieved angles."""
+        from rig.geometry import sph_to_vec
+
+        rad = {k: np.radians(self.columns[k]) for k in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg")}
+        return (sph_to_vec(rad["theta_i_deg"], rad["phi_i_deg"]),
+                sph_to_vec(rad["theta_o_deg"], rad["phi_o_deg"]))
+
+    def has_flag(self, flag: str) -> np.ndarray:
+        return np.array([flag in f for f in self.flags], bool)
+
+
+def load(path: str | Path) -> Dataset:
+    """Read a dataset folder (brdf.csv, skipped.csv, dataset.json); units in `UNITS`."""
+    path = Path(path)
+    try:
+        manifest = json.loads((path / "dataset.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: not a dataset folder (no dataset.json)") from None
+    except json.JSONDecodeError as exc:
+        raise DatasetError(f"{path / 'dataset.json'}: not valid JSON: {exc}") from None
+    if manifest.get("format") != FORMAT:
+        raise DatasetError(f"{path / 'dataset.json'}: format is {manifest.get('format')!r}, not {FORMAT!r}")
+    with open(path / "brdf.csv", newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = reader.fieldnames or []
+        missing = [c for c in BRDF_COLUMNS[:21] if c not in header]
+        if missing:
+            raise DatasetError(f"{path / 'brdf.csv'}: missing columns {', '.join(missing)}")
+        rows = list(reader)
+    columns: dict[str, np.ndarray] = {}
+    for name in header:
+        if name in _TEXT_COLUMNS:
+            continue
+        try:
+            columns[name] = np.array([float(r[name]) for r in rows], dtype=float)
+        except ValueError as exc:
+            raise DatasetError(f"{path / 'brdf.csv'}: column {name}: {exc}") from None
+    columns["exposures_s"] = [tuple(float(x) for x in r["exposures_s"].split(";") if x) for r in rows]
+    skipped_path = path / "skipped.csv"
+    skipped = []
+    if skipped_path.exists():
+        with open(skipped_path, newline="", encoding="utf-8") as fh:
+            skipped = list(csv.DictReader(fh))
+    return Dataset(path=path, manifest=manifest, columns=columns, point_id=[r["point_id"] for r in rows],
+                   flags=[tuple(f for f in r["flags"].split(";") if f) for r in rows], skipped=skipped)
