@@ -32,7 +32,7 @@ from drivers.interfaces import Window  # noqa: E402
 from drivers.modbus_axis import ModbusAxisController  # noqa: E402
 from drivers.transport import LineTransport  # noqa: E402
 from rig.campaign import load_campaign  # noqa: E402
-from rig.cli import manifest_for  # noqa: E402
+from rig.execute import manifest_for  # noqa: E402
 from rig.dataset import DatasetWriter  # noqa: E402
 from rig.plan import build_plan  # noqa: E402
 from rig.rigconfig import RigConfig  # noqa: E402

@@ -96,6 +96,12 @@ class Output(_Strict):
 class Capture(_Strict):
     """HDR capture of one point (see rig.capture.CaptureSettings)."""
 
+    mode: Literal["adaptive", "fixed_bracket"] = "adaptive"
+    target_snr: float = Field(200.0, gt=0)
+    max_frames: int = Field(16, ge=1, le=256)
+    bracket_count: int = Field(5, ge=1, le=12)
+    bracket_step_stops: float = Field(1.0, gt=0, le=4)
+    dark_max_age_s: float | None = Field(1800.0, gt=0)
     roi_px: int = Field(70, ge=4, le=1000)
     probe_exposure_s: float = Field(0.002, gt=0)
     target_fraction: float = Field(0.7, gt=0, le=0.95)
@@ -105,11 +111,33 @@ class Capture(_Strict):
     min_snr: float = Field(10.0, ge=0)
     save_images: bool = False
 
+    @model_validator(mode="after")
+    def _frames_consistent(self):
+        if self.max_frames < self.frames_per_exposure:
+            raise ValueError(f"max_frames ({self.max_frames}) must be at least frames_per_exposure "
+                             f"({self.frames_per_exposure})")
+        return self
+
 
 class Illuminance(_Strict):
-    """E⊥ measurement: `readings` averaged at the start of every incidence series."""
+    """E⊥: `readings` averaged per measurement, re-measured on a schedule, drift-corrected.
+
+    remeasure: `per_series` (at each series start), `every_n_points` or `every_minutes`
+    (with `every`); correction: `interpolate` (E⊥ interpolated in rig time between the
+    bracketing readings, flag `drift_corrected`) or `latest` (the last reading).
+    """
 
     readings: int = Field(5, ge=1, le=1000)
+    remeasure: Literal["per_series", "every_n_points", "every_minutes"] = "per_series"
+    every: float = Field(0.0, ge=0)
+    correction: Literal["interpolate", "latest"] = "interpolate"
+
+    @model_validator(mode="after")
+    def _every_given(self):
+        if self.remeasure != "per_series" and not self.every > 0:
+            raise ValueError(f"remeasure: {self.remeasure} needs `every` > 0 "
+                             f"({'points' if self.remeasure == 'every_n_points' else 'minutes'})")
+        return self
 
 
 class Lamp(_Strict):

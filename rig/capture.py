@@ -5,15 +5,31 @@ The only module that drives the camera. It chooses the exposures the ROI needs
 them with cached dark frames, and hands the raw data to the pure physics in
 `rig.hdr` (merge) and `rig.roi` (ROI statistics).
 
-Exposure strategy: a probe exposure meters the ROI; the main exposure puts the
-ROI's peak raw signal at `target_fraction` of the usable range, re-metering if
-the probe saw mostly noise (lengthening up to the sensor's longest exposure).
-If the probe saturates in the ROI its peak is unknown, so the probe itself is
-the main exposure; while ROI pixels saturate in the shortest exposure so far,
-shorter exposures `bracket_stops` apart are added, up to `max_exposures`.
-Exposures saturated over the whole window are then left out of the merge.
+Metering (both modes): a probe exposure meters the ROI; the metered exposure
+puts the ROI's peak raw signal at `target_fraction` of the usable range,
+re-metering if the probe saw mostly noise (lengthening up to the sensor's
+longest exposure). If the probe saturates in the ROI its peak is unknown, so
+the probe itself is the metered exposure.
+
+`adaptive` mode: the metered exposure, plus — while ROI pixels saturate in the
+shortest exposure so far — shorter exposures `bracket_stops` apart, up to
+`max_exposures`; exposures saturated over the whole merged region are left out.
+Then frames are added to every exposure (frame averaging) until the camera-noise
+SNR of the ROI mean reaches `target_snr` or `max_frames` frames per exposure;
+each dark stack is topped up to as many frames as its exposure has, so that the
+dark's noise, which averaging light frames cannot reduce, keeps pace. Averaging
+that could not lift that SNR even to `min_snr` is not attempted: the point stays
+`low_signal` whatever it costs. A bright, ordinary ROI needs the probe and one
+exposure.
+
+`fixed_bracket` mode (the baseline, like a vendor HDR mode): `bracket_count`
+exposures `bracket_step_stops` apart centred on the metered exposure, all
+merged (the merge excludes saturated samples), `frames_per_exposure` frames each.
+
 Exposure times lie on a 1/6-stop ladder so that dark frames are reused from
-point to point.
+point to point. Only the ROI is merged unless `full_frame` (images are saved);
+the camera reads only a window around the ROI, or, if it cannot, the frame it
+returns is cropped.
 """
 
 from __future__ import annotations
@@ -22,40 +38,54 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.interfaces import DeviceError, Frame, LuminanceCamera, SensorInfo, Window
-from rig.hdr import merge_exposures, saturation_threshold_dn
-from rig.roi import BLOCK_PX, roi_statistics
+from drivers.interfaces import Clock, DeviceError, Frame, LuminanceCamera, SensorInfo, Window
+from rig.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
+from rig.roi import BLOCK_PX, mean_noise, roi_statistics
 
-#: Metering frames taken at most before the main exposure is accepted.
+#: Metering frames taken at most before the metered exposure is accepted.
 MAX_METERING_STEPS = 4
 #: A metered exposure within this many stops of the ideal one is kept rather than retaken.
 KEEP_TOLERANCE_STOPS = 0.5
 #: Peak signals below this (DN) are treated as this, so an unlit ROI asks for the longest exposure.
 MIN_PEAK_DN = 1.0
+MODES = ("adaptive", "fixed_bracket")
 
 
 @dataclass(frozen=True)
 class CaptureSettings:
     """How one point is exposed; built from the campaign file."""
 
+    mode: str = "adaptive"            # `adaptive` or `fixed_bracket` (see the module docstring)
     roi_px: int = 70                  # side of the central square ROI (px)
     probe_exposure_s: float = 0.002   # first, metering exposure
     target_fraction: float = 0.7      # ROI peak above black level / usable range
-    bracket_stops: float = 2.0        # spacing of added shorter exposures
-    max_exposures: int = 5            # exposures merged at most
-    frames_per_exposure: int = 1      # frames averaged per exposure
+    bracket_stops: float = 2.0        # adaptive: spacing of added shorter exposures
+    max_exposures: int = 5            # adaptive: exposures merged at most
+    frames_per_exposure: int = 1      # frames averaged per exposure, at least
+    target_snr: float = 200.0         # adaptive: ROI mean / its camera noise to reach by averaging
+    max_frames: int = 16              # adaptive: frames per exposure at most
+    bracket_count: int = 5            # fixed_bracket: exposures
+    bracket_step_stops: float = 1.0   # fixed_bracket: their spacing
+    dark_max_age_s: float | None = None  # darks older than this on the rig clock are re-taken; None: never
     min_snr: float = 10.0             # ROI mean / its uncertainty below this: `low_signal`
     full_frame: bool = False          # read, merge and return the whole sensor
     window_margin_px: int = 0         # extra pixels read around the ROI
 
     def __post_init__(self):
         checks = {
+            "mode": (self.mode in MODES, f"one of {', '.join(MODES)}"),
             "roi_px": (self.roi_px >= 2 * BLOCK_PX, f"an integer ≥ {2 * BLOCK_PX} (two {BLOCK_PX}-px blocks)"),
             "probe_exposure_s": (self.probe_exposure_s > 0, "> 0"),
             "target_fraction": (0 < self.target_fraction < 1, "between 0 and 1 (exclusive)"),
             "bracket_stops": (self.bracket_stops >= 0.5, "≥ 0.5"),
             "max_exposures": (self.max_exposures >= 1, "an integer ≥ 1"),
             "frames_per_exposure": (self.frames_per_exposure >= 1, "an integer ≥ 1"),
+            "target_snr": (self.target_snr > 0, "> 0"),
+            "max_frames": (self.max_frames >= self.frames_per_exposure,
+                           f"an integer ≥ frames_per_exposure ({self.frames_per_exposure})"),
+            "bracket_count": (self.bracket_count >= 1, "an integer ≥ 1"),
+            "bracket_step_stops": (self.bracket_step_stops > 0, "> 0"),
+            "dark_max_age_s": (self.dark_max_age_s is None or self.dark_max_age_s > 0, "None or > 0"),
             "min_snr": (self.min_snr >= 0, "≥ 0"),
             "window_margin_px": (self.window_margin_px >= 0, "an integer ≥ 0"),
         }
@@ -66,7 +96,15 @@ class CaptureSettings:
 
 @dataclass(frozen=True)
 class PointCapture:
-    """Result of `capture_point`: the ROI luminance and how it was obtained."""
+    """Result of `capture_point`: the ROI luminance and how it was obtained.
+
+    The uncertainty components are for the budget table; they are not to be
+    added to u_luminance_cd_m2, which already holds them. u_block (the spread of
+    block means, `rig.roi`) contains the camera noise and the texture:
+    u_block² ≈ u_noise² + u_texture², u_luminance² = u_block² + (u_rel,cal · L)²;
+    and u_noise² = u_frames² + u_dark², where only u_frames is independent from
+    point to point (u_dark is shared by the points that reuse the same darks).
+    """
 
     luminance_cd_m2: float
     u_luminance_cd_m2: float           # block-based ROI uncertainty ⊕ calibration
@@ -77,6 +115,21 @@ class PointCapture:
     image_cd_m2: np.ndarray | None     # whole merged image when full_frame
     roi_window: Window                 # in sensor coordinates
     n_frames: int                      # raw frames taken, darks excluded
+    u_noise_cd_m2: float               # camera noise of the ROI mean, from the merge variance
+    u_dark_cd_m2: float                # the part of u_noise due to the subtracted dark frames
+    u_texture_cd_m2: float             # ROI non-uniformity: √max(u_block² − u_noise², 0)
+    capture_time_s: float              # rig time taken (clock), else the summed exposure times
+    n_darks: int                       # dark frames taken for this point
+
+
+def _pixels(camera: LuminanceCamera, frame: Frame, window: Window) -> np.ndarray:
+    """`window`'s pixels of a frame; a camera that cannot read windows returns a larger one."""
+    if frame.pixels_dn.shape != (frame.window.height, frame.window.width):
+        raise DeviceError(camera.identity(), f"returned a {frame.pixels_dn.shape} frame for window {frame.window}")
+    try:
+        return frame.pixels_dn[frame.window.inner(window)]
+    except ValueError:
+        raise DeviceError(camera.identity(), f"returned window {frame.window} for window {window}") from None
 
 
 class DarkFrameCache:
@@ -84,32 +137,54 @@ class DarkFrameCache:
 
     Dark signal depends on exposure time and sensor temperature, not on the
     scene, so one dark serves every point exposed on the same rung of the
-    exposure ladder until `invalidate` (e.g. on a re-take schedule).
+    exposure ladder while it is valid: younger than the `max_age_s` asked for,
+    on `clock` (the rig's; it also times `capture_point`), and not dropped by
+    `invalidate` (call it when the sensor temperature has changed).
     """
 
-    def __init__(self, frames_per_dark: int = 1, steps_per_stop: int = 6):
+    def __init__(self, frames_per_dark: int = 1, steps_per_stop: int = 6, clock: Clock | None = None):
         if frames_per_dark < 1 or steps_per_stop < 1:
             raise ValueError("frames_per_dark and steps_per_stop must be ≥ 1")
         self.frames_per_dark = frames_per_dark
         self.steps_per_stop = steps_per_stop
+        self.clock = clock
         self.n_taken = 0                  # dark frames taken so far
-        self._darks: dict[tuple[float, Window], np.ndarray] = {}
+        self.exposed_s = 0.0              # their summed exposure time
+        self._darks: dict[tuple[float, Window], tuple[float, list[np.ndarray]]] = {}
 
     def snap(self, exposure_s: float, sensor: SensorInfo) -> float:
-        """Nearest exposure time (s) on the ladder, clamped to the sensor's range."""
-        rung = np.round(np.log2(exposure_s) * self.steps_per_stop) / self.steps_per_stop
-        return float(np.clip(2.0 ** rung, sensor.min_exposure_s, sensor.max_exposure_s))
+        """Nearest exposure time (s) on the ladder, clamped to the sensor's range.
 
-    def get(self, camera: LuminanceCamera, exposure_s: float, window: Window) -> np.ndarray:
-        """Stack (m, H, W) of raw dark frames for an exposure time on the ladder."""
+        Clamping before rounding too makes snap idempotent when a range limit is
+        not a rung (the ladder then ends on the rung nearest the limit).
+        """
+        limits = sensor.min_exposure_s, sensor.max_exposure_s
+        rung = np.round(np.log2(np.clip(exposure_s, *limits)) * self.steps_per_stop) / self.steps_per_stop
+        return float(np.clip(2.0 ** rung, *limits))
+
+    def get(self, camera: LuminanceCamera, exposure_s: float, window: Window, frames: int = 1,
+            max_age_s: float | None = None) -> np.ndarray:
+        """Stack (m, H, W), m ≥ max(frames_per_dark, frames), of raw darks for a ladder exposure.
+
+        A stack taken more than `max_age_s` ago is re-taken; a short one is
+        topped up and keeps the age of its first frame.
+        """
         if exposure_s != self.snap(exposure_s, camera.sensor):
             raise ValueError(f"exposure {exposure_s} s is not on the dark-frame ladder; use snap()")
+        if max_age_s is not None and self.clock is None:
+            raise ValueError("dark frames can only age on a clock: give the DarkFrameCache the rig clock")
+        now = self.clock.now() if self.clock else 0.0
         key = (exposure_s, window)
-        if key not in self._darks:
-            self._darks[key] = np.stack([_pixels(camera, camera.capture_dark(exposure_s, window), window)
-                                         for _ in range(self.frames_per_dark)])
-            self.n_taken += self.frames_per_dark
-        return self._darks[key]
+        taken_s, stack = self._darks.get(key, (now, []))
+        if max_age_s is not None and now - taken_s > max_age_s:
+            taken_s, stack = now, []
+        while len(stack) < max(self.frames_per_dark, frames):
+            frame = camera.capture_dark(exposure_s, window)
+            stack.append(_pixels(camera, frame, window))
+            self.n_taken += 1
+            self.exposed_s += frame.exposure_s
+        self._darks[key] = (taken_s, stack)
+        return np.stack(stack)
 
     def invalidate(self) -> None:
         """Forget all darks, so that the next points take fresh ones."""
@@ -119,11 +194,36 @@ class DarkFrameCache:
         return len(self._darks)
 
 
-def _pixels(camera: LuminanceCamera, frame: Frame, window: Window) -> np.ndarray:
-    """The frame's pixels, after checking the camera read the window asked for."""
-    if frame.pixels_dn.shape != (window.height, window.width):
-        raise DeviceError(camera.identity(), f"returned a {frame.pixels_dn.shape} frame for window {window}")
-    return frame.pixels_dn
+class _Shots:
+    """The raw frames of one point by exposure time, each taken only when first needed."""
+
+    def __init__(self, camera: LuminanceCamera, window: Window):
+        self.camera = camera
+        self.window = window
+        self._frames: dict[float, list[np.ndarray]] = {}
+        self._realised: dict[float, list[float]] = {}
+
+    def take(self, exposure_s: float, count: int) -> np.ndarray:
+        """All frames (≥ count, H, W) at exposure_s, taking only those still missing."""
+        frames = self._frames.setdefault(exposure_s, [])
+        realised = self._realised.setdefault(exposure_s, [])
+        while len(frames) < count:
+            frame = self.camera.capture(exposure_s, self.window)
+            frames.append(_pixels(self.camera, frame, self.window))
+            realised.append(frame.exposure_s)
+        return np.stack(frames)
+
+    def realised_s(self, exposure_s: float) -> float:
+        """Mean exposure time the camera realised for the frames at exposure_s."""
+        return float(np.mean(self._realised[exposure_s]))
+
+    @property
+    def n_taken(self) -> int:
+        return sum(len(frames) for frames in self._frames.values())
+
+    @property
+    def exposed_s(self) -> float:
+        return float(sum(map(sum, self._realised.values())))
 
 
 def _grown(window: Window, margin_px: int, sensor: SensorInfo) -> Window:
@@ -134,38 +234,20 @@ def _grown(window: Window, margin_px: int, sensor: SensorInfo) -> Window:
     return Window(x0, y0, x1 - x0, y1 - y0)
 
 
-def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> PointCapture:
-    """Expose, merge and reduce the ROI of the current view (see the module docstring)."""
-    sensor = camera.sensor
-    if settings.roi_px > min(sensor.width_px, sensor.height_px):
-        raise ValueError(f"roi_px {settings.roi_px} exceeds the {sensor.width_px}×{sensor.height_px} sensor")
-    roi = Window.centred(sensor.width_px, sensor.height_px, settings.roi_px, settings.roi_px)
-    window = camera.full_window() if settings.full_frame else _grown(roi, settings.window_margin_px, sensor)
-    in_roi = window.inner(roi)
+def _metered_exposure(shots: _Shots, in_roi: tuple[slice, ...], darks: DarkFrameCache,
+                      sensor: SensorInfo, settings: CaptureSettings) -> float:
+    """Ladder exposure putting the ROI peak at target_fraction; the probe if that saturates.
+
+    The black level stands in for the dark frame, which only shifts the peak by
+    the dark current and saves darks of exposures that are not kept.
+    """
     threshold = saturation_threshold_dn(sensor)
     target_dn = settings.target_fraction * (threshold - sensor.black_level_dn)
-    shots: dict[float, list[np.ndarray]] = {}
-    realised: dict[float, list[float]] = {}
-
-    def shoot(exposure_s: float, count: int) -> np.ndarray:
-        """All frames (≥ count, H, W) at exposure_s, taking only those still missing."""
-        frames = shots.setdefault(exposure_s, [])
-        while len(frames) < count:
-            frame = camera.capture(exposure_s, window)
-            frames.append(_pixels(camera, frame, window))
-            realised.setdefault(exposure_s, []).append(frame.exposure_s)
-        return np.stack(frames)
-
-    def roi_saturates(exposure_s: float) -> bool:
-        return bool(np.any(shoot(exposure_s, 1)[(slice(None),) + in_roi] >= threshold))
-
-    # Metering: the black level stands in for the dark frame, which only shifts the
-    # peak by the dark current and saves darks of exposures that are not kept.
     t = darks.snap(settings.probe_exposure_s, sensor)
     for _ in range(MAX_METERING_STEPS):
-        raw = shoot(t, 1)[0][in_roi]
+        raw = shots.take(t, 1)[in_roi][0]
         if np.any(raw >= threshold):
-            break          # peak unknown: keep t, the bracket below adds shorter exposures
+            break          # peak unknown: keep t, shorter exposures come after
         peak_dn = float(raw.max()) - sensor.black_level_dn
         t_next = darks.snap(t * target_dn / max(peak_dn, MIN_PEAK_DN), sensor)
         if t_next <= 2 * t:
@@ -173,37 +255,115 @@ def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: Dar
                 t = t_next
             break
         t = t_next         # under-exposed by over a stop: the peak was mostly noise, meter again
+    return t
 
-    exposures = [t]
-    shoot(t, settings.frames_per_exposure)
-    while (roi_saturates(exposures[-1]) and len(exposures) < settings.max_exposures
-           and exposures[-1] > sensor.min_exposure_s):
-        shorter = darks.snap(max(exposures[-1] * 2.0 ** -settings.bracket_stops, sensor.min_exposure_s), sensor)
-        exposures.append(shorter)
-        shoot(shorter, settings.frames_per_exposure)
 
-    # An exposure saturated everywhere adds nothing; keep at least the shortest.
-    useful = [e for e in exposures if not np.all(np.any(shoot(e, 1) >= threshold, axis=0))] or [exposures[-1]]
-    exposures_s = tuple(float(np.mean(realised[e])) for e in useful)
-    merged = merge_exposures([shoot(e, settings.frames_per_exposure) for e in useful],
-                             [darks.get(camera, e, window) for e in useful], exposures_s, sensor)
+def _adaptive_exposures(shots: _Shots, metered_s: float, in_roi: tuple[slice, ...], region: tuple[slice, ...],
+                        darks: DarkFrameCache, sensor: SensorInfo, settings: CaptureSettings) -> list[float]:
+    """The metered exposure and the shorter ones the ROI's saturated pixels need (module docstring).
+
+    `in_roi` and `region` index the ROI and the merged region in a stack of frames.
+    """
+    threshold = saturation_threshold_dn(sensor)
+    exposures = [metered_s]
+    while (np.any(shots.take(exposures[-1], 1)[in_roi] >= threshold)
+           and len(exposures) < settings.max_exposures and exposures[-1] > sensor.min_exposure_s):
+        shorter = max(exposures[-1] * 2.0 ** -settings.bracket_stops, sensor.min_exposure_s)
+        exposures.append(darks.snap(shorter, sensor))
+    # An exposure saturated everywhere in the merged region adds nothing; keep at least the shortest.
+    return [e for e in exposures if not np.all(np.any(shots.take(e, 1)[region] >= threshold, axis=0))] \
+        or [exposures[-1]]
+
+
+def fixed_bracket(centre_s: float, settings: CaptureSettings, darks: DarkFrameCache,
+                  sensor: SensorInfo) -> list[float]:
+    """`bracket_count` ladder exposures `bracket_step_stops` apart around centre_s, shortest first.
+
+    The bracket is shifted, not truncated, where it would leave the sensor's
+    range, so that it keeps its count as a vendor's HDR mode does.
+    """
+    offsets = settings.bracket_step_stops * (np.arange(settings.bracket_count) - (settings.bracket_count - 1) / 2)
+    centre = np.clip(np.log2(centre_s), np.log2(sensor.min_exposure_s) - offsets[0],
+                     np.log2(sensor.max_exposure_s) - offsets[-1])
+    return list(dict.fromkeys(darks.snap(2.0 ** (centre + o), sensor) for o in offsets))
+
+
+def frames_for_snr(mean: float, var_frames: float, var_dark: float, n: int, m: int,
+                   settings: CaptureSettings) -> int:
+    """Frames per exposure, ≥ n, for the ROI mean's camera-noise SNR to reach target_snr.
+
+    With n frames and m darks per exposure the mean's variance is var_frames +
+    var_dark; var_frames falls as 1/n, var_dark as 1/m, and darks are topped up
+    to the frame count. Returns max_frames if no count reaches the target, and n
+    if max_frames could not even reach min_snr (averaging would be wasted).
+    """
+    counts = np.arange(n, settings.max_frames + 1)
+    snr = mean / np.sqrt(var_frames * n / counts + var_dark * m / np.maximum(m, counts))
+    if snr[-1] < settings.min_snr:
+        return n
+    reached = snr >= settings.target_snr
+    return int(counts[np.argmax(reached)]) if reached.any() else settings.max_frames
+
+
+def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> PointCapture:
+    """Expose, merge and reduce the ROI of the current view (see the module docstring)."""
+    sensor = camera.sensor
+    if settings.roi_px > min(sensor.width_px, sensor.height_px):
+        raise ValueError(f"roi_px {settings.roi_px} exceeds the {sensor.width_px}×{sensor.height_px} sensor")
+    start_s = darks.clock.now() if darks.clock else 0.0
+    darks_before, dark_exposed_before = darks.n_taken, darks.exposed_s
+    roi = Window.centred(sensor.width_px, sensor.height_px, settings.roi_px, settings.roi_px)
+    window = camera.full_window() if settings.full_frame else _grown(roi, settings.window_margin_px, sensor)
+    merged_window = window if settings.full_frame else roi
+    in_merged = merged_window.inner(roi)                        # (rows, cols) in a merged image
+    in_window, region = ((slice(None), *window.inner(w)) for w in (roi, merged_window))   # in a frame stack
+    shots = _Shots(camera, window)
+
+    metered_s = _metered_exposure(shots, in_window, darks, sensor, settings)
+    if settings.mode == "fixed_bracket":
+        exposures = fixed_bracket(metered_s, settings, darks, sensor)
+    else:
+        exposures = _adaptive_exposures(shots, metered_s, in_window, region, darks, sensor, settings)
+
+    def merge(n: int) -> tuple[HdrMerge, int]:
+        """Merge of n frames per exposure over the merged region, and the fewest darks per exposure."""
+        dark = [darks.get(camera, e, window, n, settings.dark_max_age_s)[region] for e in exposures]
+        return merge_exposures([shots.take(e, n)[region] for e in exposures], dark,
+                               [shots.realised_s(e) for e in exposures], sensor), min(map(len, dark))
+
+    n_next = settings.frames_per_exposure
+    while True:
+        n = n_next
+        merged, m = merge(n)
+        var_noise, var_dark = (mean_noise(v[in_merged]) ** 2 for v in (merged.var_rate, merged.var_dark))
+        if settings.mode == "adaptive":
+            n_next = frames_for_snr(float(merged.rate_dn_s[in_merged].mean()), var_noise - var_dark, var_dark,
+                                    n, m, settings)
+        if n_next == n:
+            break
+
     cal = sensor.calibration_cd_m2_per_dn_s
     luminance = merged.rate_dn_s * cal
-    stats = roi_statistics(luminance[in_roi], merged.var_rate[in_roi] * cal ** 2)
-
+    stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal ** 2)
     flags = []
     if stats.mean <= settings.min_snr * stats.u_mean:
         flags.append("low_signal")
-    if np.any(merged.clipped[in_roi]):
+    if np.any(merged.clipped[in_merged]):
         flags.append("roi_saturated")
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=float(np.hypot(stats.u_mean, sensor.calibration_u_rel * stats.mean)),
         roi_std_cd_m2=stats.std,
-        exposures_s=exposures_s,
-        saturated_fraction=float(np.mean(merged.saturated[in_roi])),
+        exposures_s=tuple(shots.realised_s(e) for e in exposures),
+        saturated_fraction=float(np.mean(merged.saturated[in_merged])),
         flags=tuple(flags),
         image_cd_m2=luminance if settings.full_frame else None,
         roi_window=roi,
-        n_frames=sum(len(frames) for frames in shots.values()),
+        n_frames=shots.n_taken,
+        u_noise_cd_m2=stats.u_mean_noise,
+        u_dark_cd_m2=float(np.sqrt(var_dark)) * cal,
+        u_texture_cd_m2=stats.u_texture,
+        capture_time_s=(darks.clock.now() - start_s if darks.clock
+                        else shots.exposed_s + darks.exposed_s - dark_exposed_before),
+        n_darks=darks.n_taken - darks_before,
     )

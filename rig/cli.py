@@ -4,19 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
-from rig import __version__
+from rig import __version__, bench
 from drivers.interfaces import DeviceError, RigDevices
-from rig.campaign import Campaign, campaign_sha256, load_campaign
-from rig.dataset import DatasetError, DatasetWriter
+from rig.campaign import Campaign, load_campaign
+from rig.dataset import DatasetError
+from rig.execute import execute
 from rig.plan import SKIP_REASONS, Plan, build_plan, estimate_rig_time_s
 from rig.progress import ProgressBar, format_duration
 from rig.configfile import ConfigFileError
 from rig.connect import open_rig
 from rig.rigconfig import RigConfig, load_rig_config
-from rig.runner import Runner
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -27,20 +26,6 @@ NOMINAL_CAPTURE_S = 0.05
 def _fail(message: str) -> int:
     print(f"rig: error: {message}", file=sys.stderr)
     return EXIT_BAD_INPUT
-
-
-def manifest_for(campaign: Campaign, campaign_path: Path, rig: RigConfig) -> dict:
-    manifest = {
-        "campaign": {"name": campaign.name, "file": str(campaign_path),
-                     "sha256": campaign_sha256(campaign_path), "content": campaign.model_dump(mode="json")},
-        "sample": campaign.sample.model_dump(mode="json", exclude={"simulated_brdf"}),
-        "rig": {"name": rig.name, "simulated": rig.simulated, "config": rig.model_dump(mode="json")},
-        "software": {"name": "rig", "version": __version__},
-        "counts": {},
-    }
-    if rig.simulated and campaign.sample.simulated_brdf is not None:
-        manifest["simulated_brdf"] = campaign.sample.simulated_brdf.model_dump(mode="json")
-    return manifest
 
 
 def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
@@ -123,36 +108,22 @@ def cmd_run(args) -> int:
         return _fail(f"{args.campaign}: no point of the campaign can be measured "
                      f"(skipped: {plan.skipped_by_reason()})")
     out = Path(args.out or campaign.output.dir)
-    try:
-        writer = DatasetWriter(out, manifest_for(campaign, Path(args.campaign), rig))
-    except DatasetError as exc:
-        return _fail(str(exc))
-    writer.write_skipped(plan.skipped)
-    truth = campaign.sample.simulated_brdf
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
     print(f"rig {__version__}: {campaign.name} on {where} → {out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
-    wall0 = time.perf_counter()
-    runner = None
     try:
-        with open_rig(rig, truth.model if truth else None, truth.params if truth else None) as devices:
-            runner = Runner(campaign, plan, devices, writer, rig,
-                            progress=None if args.quiet else ProgressBar())
-            status = runner.run()
-    except Exception as exc:
-        kept = runner.measured if runner else 0
-        if runner is None:       # the rig never came up, so no runner recorded the failure
-            writer.event("failed", error=str(exc))
-            writer.update_manifest(status="failed", error=str(exc))
-        print(f"rig: campaign failed: {exc}; {kept} completed points kept in {out}", file=sys.stderr)
+        outcome = execute(campaign, Path(args.campaign), rig, plan, out,
+                          progress=None if args.quiet else ProgressBar())
+    except DatasetError as exc:
+        return _fail(str(exc))
+    if outcome.status == "failed":
+        print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {out}",
+              file=sys.stderr)
         return EXIT_FAILED
-    finally:
-        writer.close()
-    wall = time.perf_counter() - wall0
-    print(f"{status}: {runner.measured} points measured, {len(plan.skipped)} skipped; "
-          f"rig time {format_duration(runner.rig_time())}, wall time {wall:.1f} s; dataset in {out}",
+    print(f"{outcome.status}: {outcome.measured} points measured, {len(plan.skipped)} skipped; "
+          f"rig time {format_duration(outcome.rig_time_s)}, wall time {outcome.wall_s:.1f} s; dataset in {out}",
           file=sys.stderr)
-    return EXIT_OK if status == "complete" else EXIT_INTERRUPTED
+    return EXIT_OK if outcome.status == "complete" else EXIT_INTERRUPTED
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -172,6 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
     p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
     p_dev.set_defaults(func=cmd_devices)
+    for module in (bench,):
+        module.add_subcommand(sub)
     return parser
 
 

@@ -30,7 +30,10 @@ BRDF_COLUMNS = (
     "stage_vertical_deg", "stage_normal_deg", "arm_azimuth_deg", "arm_polar_deg",
     "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
     # project columns after the contract's
-    "u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames",
+    "u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s",
+    # relative uncertainty budget (k = 1), see rig/budget.py
+    "u_rel_noise", "u_rel_dark", "u_rel_texture", "u_rel_calibration", "u_rel_illuminance", "u_rel_drift",
+    "u_rel_angle",
 )
 SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
 
@@ -168,6 +171,7 @@ UNITS = {
     "illuminance_lx": "lx", "illuminance_normal_lx": "lx", "u_illuminance_normal_lx": "lx",
     "stage_vertical_deg": "deg", "stage_normal_deg": "deg", "arm_azimuth_deg": "deg", "arm_polar_deg": "deg",
     "exposures_s": "s", "saturated_fraction": "1", "rig_time_s": "s", "roi_std_cd_m2": "cd/m2",
+    "capture_time_s": "s", **{c: "1" for c in BRDF_COLUMNS if c.startswith("u_rel_")},
 }
 _TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}
 

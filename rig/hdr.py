@@ -33,6 +33,7 @@ class HdrMerge:
 
     rate_dn_s: np.ndarray      # signal rate above dark, DN/s (float64)
     var_rate: np.ndarray       # its variance, (DN/s)²
+    var_dark: np.ndarray       # the part of var_rate due to the subtracted dark frames, (DN/s)²
     n_used: np.ndarray         # number of exposures merged into each pixel (int)
     saturated: np.ndarray      # saturated in the longest exposure (bool)
     clipped: np.ndarray        # saturated in every exposure: rate is a lower bound (bool)
@@ -74,8 +75,8 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     Notes
     -----
     X̂ = Σ wₖ rₖ / Σ wₖ with rₖ = (ȳₖ − d̄ₖ)/tₖ, wₖ = tₖ²/σₖ² and var X̂ = 1/Σ wₖ, where
-    σₖ² = (K(S + D) + ρ²)/nₖ + (K D + ρ²)/mₖ, ρ² = (K σ_read)² + 1/12, S = X tₖ the
-    signal and D the dark-current signal (DN). S comes from the previous pass's
+    σₖ² = (K(S + D) + ρ²)/nₖ + δₖ, δₖ = (K D + ρ²)/mₖ, ρ² = (K σ_read)² + 1/12,
+    S = X tₖ the signal and D the dark-current signal (DN). S comes from the previous pass's
     X̂, not from the sample itself, so weights do not correlate with the sample's
     noise (a sample that came out high would otherwise get a lower weight); D is
     the median of the dark frame for the same reason. The first pass uses S = 0.
@@ -84,6 +85,11 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     unsaturated frames are a biased selection. A pixel saturated in every
     exposure gets the shortest exposure's clipped rate and variance as a lower
     bound and `clipped` set.
+
+    δₖ is the variance of the subtracted dark d̄ₖ. It is shared by all nₖ frames and
+    by every other merge that reuses the dark, so it neither averages down with
+    frames nor over points; `var_dark` = Σ wₖ² δₖ/tₖ² / (Σ wₖ)² is its share of var X̂
+    (the rest, var X̂ − var_dark, is the frames' own noise).
     """
     t = np.asarray(exposures_s, dtype=float)
     if not (len(raw_dn) == len(dark_dn) == t.size) or t.size == 0:
@@ -95,32 +101,31 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     threshold = saturation_threshold_dn(sensor, margin_rel)
     k_gain = sensor.gain_dn_per_e
     read_var = (k_gain * sensor.read_noise_e) ** 2 + QUANTISATION_VAR_DN2
+    t3 = t[:, None, None]
 
     saturated = np.stack([np.any(f >= threshold, axis=0) for f in frames])          # (E, H, W)
     dark_mean = np.stack([d.mean(axis=0, dtype=float) for d in darks])
-    signal_dn = np.stack([f.mean(axis=0, dtype=float) for f in frames]) - dark_mean
-    rates = signal_dn / t[:, None, None]
+    rates = (np.stack([f.mean(axis=0, dtype=float) for f in frames]) - dark_mean) / t3
     n_frames = np.array([f.shape[0] for f in frames], float)[:, None, None]
     n_darks = np.array([d.shape[0] for d in darks], float)[:, None, None]
     dark_signal_dn = np.maximum(np.median(dark_mean, axis=(1, 2)) - sensor.black_level_dn, 0.0)
-    dark_var = (k_gain * dark_signal_dn[:, None, None] + read_var) * (1.0 / n_frames + 1.0 / n_darks)
+    floor_var = k_gain * dark_signal_dn[:, None, None] + read_var      # per frame, without signal
+    dark_frame_var = floor_var / n_darks                                # δₖ
 
     def inverse_variance(rate_dn_s: np.ndarray) -> np.ndarray:
         """wₖ = 1/var(rₖ) for a signal rate estimate (DN/s), (E, H, W)."""
-        shot_var = k_gain * np.maximum(rate_dn_s, 0.0) * t[:, None, None] / n_frames
-        return t[:, None, None] ** 2 / (shot_var + dark_var)
+        frame_var = (k_gain * np.maximum(rate_dn_s, 0.0) * t3 + floor_var) / n_frames
+        return t3 ** 2 / (frame_var + dark_frame_var)
 
-    usable = ~saturated
+    clipped = saturated.all(axis=0)
+    shortest = np.arange(t.size)[:, None, None] == np.argmin(t)
+    usable = ~saturated | (clipped & shortest)       # clipped pixels fall back on the shortest exposure
     rate = np.zeros(rates.shape[1:])
     for _ in range(1 + REWEIGHT_PASSES):
         weights = np.where(usable, inverse_variance(rate[None]), 0.0)
         weight_sum = weights.sum(axis=0)
-        rate = np.sum(weights * rates, axis=0) / np.where(weight_sum > 0, weight_sum, 1.0)
+        rate = np.sum(weights * rates, axis=0) / weight_sum
 
-    clipped = weight_sum == 0
-    shortest = int(np.argmin(t))
-    rate = np.where(clipped, rates[shortest], rate)
-    var_rate = np.where(clipped, 1.0 / inverse_variance(rate[None])[shortest],
-                        1.0 / np.where(clipped, 1.0, weight_sum))
-    return HdrMerge(rate_dn_s=rate, var_rate=var_rate, n_used=usable.sum(axis=0),
-                    saturated=saturated[int(np.argmax(t))], clipped=clipped)
+    var_dark = np.sum(weights ** 2 * dark_frame_var / t3 ** 2, axis=0) / weight_sum ** 2
+    return HdrMerge(rate_dn_s=rate, var_rate=1.0 / weight_sum, var_dark=var_dark,
+                    n_used=(~saturated).sum(axis=0), saturated=saturated[int(np.argmax(t))], clipped=clipped)

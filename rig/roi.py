@@ -8,7 +8,8 @@ larger than a grain (10 × 10 px by default): block means are nearly
 independent, and their spread contains both the pixel noise and the texture,
 whereas std/√n would assume independent pixels and understate it by roughly
 the square root of the number of pixels per grain. The propagated per-pixel
-variance alone is reported next to it to show how much of the total is noise.
+variance alone is reported next to it to show how much of the total is noise,
+and the difference of the two squares is the texture's share.
 """
 
 from __future__ import annotations
@@ -31,6 +32,16 @@ class RoiStats:
     std: float             # pixel standard deviation (texture + noise)
     n: int                 # pixels
     n_blocks: int          # whole blocks used for u_mean
+
+    @property
+    def u_texture(self) -> float:
+        """Non-uniformity (texture) part of u_mean: √(u_mean² − u_mean_noise²), 0 if noise explains it all."""
+        return float(np.sqrt(max(self.u_mean ** 2 - self.u_mean_noise ** 2, 0.0)))
+
+
+def mean_noise(variance: np.ndarray) -> float:
+    """Standard uncertainty of the mean of pixels with independent noise of these variances."""
+    return float(np.sqrt(np.sum(variance)) / np.size(variance))
 
 
 def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
@@ -64,6 +75,6 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
     n = image.size
     return RoiStats(mean=float(image.mean()),
                     u_mean=float(means.std(ddof=1) / np.sqrt(means.size)),
-                    u_mean_noise=float(np.sqrt(variance.sum()) / n),
+                    u_mean_noise=mean_noise(variance),
                     std=float(image.std(ddof=1)),
                     n=n, n_blocks=int(means.size))

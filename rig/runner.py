@@ -1,39 +1,36 @@
 """The run engine: executes a plan on a set of devices and writes the dataset.
 
-It owns the sequence (warm-up, E⊥ per series, move → capture → process →
+It owns the sequence (warm-up, E⊥ on a schedule, move → capture → process →
 append) and the exits: whatever happens, the lamp is switched off, the axes are
 stopped and the manifest says how the run ended. It does I/O and bookkeeping;
-the physics it calls (kinematics, HDR merge, BRDF and uncertainty) is pure.
+the physics it calls (kinematics, HDR merge, BRDF, uncertainty) is pure.
+
+Drift correction needs the E⊥ reading *after* a point, so with
+`illuminance.correction: interpolate` a measured point is first written ahead
+to events.jsonl (`point_pending`, fsync'ed: nothing is lost if the process
+dies) and appended to brdf.csv once the next reading brackets it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
 
 from drivers.interfaces import DeviceError, RigDevices
 from rig import geometry as geo
+from rig.budget import BUDGET_COLUMNS, campaign_budget
 from rig.campaign import Campaign
-from rig.capture import CaptureSettings, DarkFrameCache, capture_point
+from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, capture_point
 from rig.dataset import DatasetWriter, utc_now
+from rig.illuminance import IlluminanceEstimate, ReadingSchedule, estimate, interpolate
 from rig.images import write_luminance_exr
 from rig.optics import CameraOptics, roi_inside_spot
 from rig.pipeline import brdf_from_luminance
 from rig.plan import Plan, PlannedPoint, move_time_s
 from rig.rigconfig import RigConfig
-
-
-@dataclass(frozen=True)
-class IlluminanceEstimate:
-    """E⊥ with its standard uncertainty, from `n` averaged meter readings at `rig_time_s`."""
-
-    value_lx: float
-    u_lx: float
-    n: int
-    rig_time_s: float
 
 
 @dataclass
@@ -47,12 +44,27 @@ class Progress:
 ProgressCallback = Callable[[Progress], None]
 
 
+@dataclass(frozen=True)
+class Measurement:
+    """Everything measured at one point, before E⊥ turns it into a BRDF row."""
+
+    point: PlannedPoint
+    motors_deg: tuple[float, float, float, float]
+    angles: geo.BrdfAngles
+    capture: PointCapture
+    flags: tuple[str, ...]
+    time_utc: str
+    rig_time_s: float
+
+
 def capture_settings(campaign: Campaign) -> CaptureSettings:
     c = campaign.capture
     return CaptureSettings(roi_px=c.roi_px, probe_exposure_s=c.probe_exposure_s,
                            target_fraction=c.target_fraction, bracket_stops=c.bracket_stops,
                            max_exposures=c.max_exposures, frames_per_exposure=c.frames_per_exposure,
-                           min_snr=c.min_snr, full_frame=c.save_images)
+                           min_snr=c.min_snr, full_frame=c.save_images, mode=c.mode, target_snr=c.target_snr,
+                           max_frames=c.max_frames, bracket_count=c.bracket_count,
+                           bracket_step_stops=c.bracket_step_stops, dark_max_age_s=c.dark_max_age_s)
 
 
 class Runner:
@@ -73,10 +85,17 @@ class Runner:
         self.rig = rig
         self.progress = progress or (lambda p: None)
         self.settings = capture_settings(campaign)
-        self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure)
+        self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure, clock=devices.clock)
         self.optics = CameraOptics.from_config(rig)
+        ill = campaign.illuminance
+        self.schedule = ReadingSchedule(ill.remeasure, ill.every)
+        self.interpolate = ill.correction == "interpolate"
         self.t0 = devices.clock.now()
         self.measured = 0
+        self.rows: list[dict] = []                 # written rows, for the campaign budget
+        self.pending: list[Measurement] = []       # waiting for the next E⊥ reading
+        self.reading: IlluminanceEstimate | None = None
+        self._points_since_reading = 0
         devices.route_events(self._device_event)
         self.position = tuple(self._read_back())
 
@@ -148,93 +167,139 @@ class Runner:
             raise DeviceError("lamp", f"output current {current:.3f} A at {voltage:.2f} V with {wanted:.3f} A set: "
                                       "lamp burnt out or circuit open")
 
-    def _measure_illuminance(self, series: int) -> IlluminanceEstimate:
-        n = self.campaign.illuminance.readings
-        readings = [self.dev.meter.read() for _ in range(n)]
+    def _new_reading(self, series: int) -> None:
+        """Measure E⊥; drift-correct and write the points measured since the previous reading."""
+        readings = [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
         values = np.array([r.illuminance_lx for r in readings])
-        mean = float(values.mean())
-        if not mean > 0:
-            raise DeviceError("meter", f"E⊥ reads {mean:g} lx (photocurrent {readings[0].photocurrent_a:g} A): "
-                                       "no light on the detector")
-        if n >= 2:
-            u_stat = float(values.std(ddof=1) / math.sqrt(n))
-        else:
-            u_stat = self.rig.meter.repeatability_rel * mean
-        u = math.hypot(u_stat, self.rig.meter.calibration_u_rel * mean)
-        est = IlluminanceEstimate(mean, u, n, self.rig_time())
-        self.writer.event("illuminance", series=series, illuminance_normal_lx=mean, u_lx=u, readings=n,
-                          photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
+        if not values.mean() > 0:
+            raise DeviceError("meter", f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
+                                       " no light on the detector")
+        est = estimate(values, self.rig_time(), self.rig.meter.repeatability_rel, self.rig.meter.calibration_u_rel)
+        self.writer.event("illuminance", series=series, illuminance_normal_lx=est.value_lx, u_lx=est.u_lx,
+                          readings=est.n, photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
                           calibration_lx_per_a=readings[0].calibration_lx_per_a, rig_time_s=est.rig_time_s)
-        return est
+        if self.pending:
+            self._write_pending(self.reading, est)
+        self.reading = est
+        self._points_since_reading = 0
 
-    def _measure_point(self, point: PlannedPoint, e_perp: IlluminanceEstimate) -> dict:
+    def _write_pending(self, before: IlluminanceEstimate, after: IlluminanceEstimate | None) -> None:
+        """Append the pending points with E⊥ interpolated between `before` and `after` (or `before` alone)."""
+        times = np.array([m.rig_time_s for m in self.pending])
+        for k, m in enumerate(self.pending):
+            if after is None:
+                self._append(self._row(m, before.value_lx, before.u_lx, 0.0))
+                continue
+            e = interpolate(before, after, times[k:k + 1])
+            self._append(self._row(replace(m, flags=m.flags + ("drift_corrected",)),
+                                   float(e.value_lx[0]), float(e.u_lx[0]), float(e.u_drift_lx[0])))
+        self.pending.clear()
+
+    def _append(self, row: dict) -> None:
+        self.writer.append_row(row)
+        self.rows.append(row)
+
+    def _measure_point(self, point: PlannedPoint) -> Measurement:
         self._move(point.motors_deg)
         self._check_lamp()
-        motors = self._read_back()
-        achieved = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg,
-                                   phi_o_at_pole_deg=point.phi_o_deg)
+        motors = tuple(self._read_back())
+        angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
         time_utc, rig_time = utc_now(), self.rig_time()
         cap = capture_point(self.dev.camera, self.settings, self.darks)
-        theta_i = float(achieved.theta_i_deg)
-        res = brdf_from_luminance(cap.luminance_cd_m2, cap.u_luminance_cd_m2, e_perp.value_lx, e_perp.u_lx,
-                                  theta_i, self.rig.geometry.angle_u_deg,
-                                  grazing_limit_deg=self.campaign.limits.grazing_limit_deg)
-        flags = list(cap.flags) + (["grazing_incidence"] if res.grazing_incidence else [])
+        flags = list(cap.flags)
         m = np.radians(motors)
         if not roi_inside_spot(m[0], m[1], m[2], m[3], self.settings.roi_px, self.optics,
                                self.rig.geometry.spot_diameter_m / 2):
             flags.append("roi_unlit")
-        row = {
-            "point_id": point.point_id, "series": point.series,
-            "theta_i_deg": theta_i, "phi_i_deg": float(achieved.phi_i_deg),
-            "theta_o_deg": float(achieved.theta_o_deg), "phi_o_deg": float(achieved.phi_o_deg),
-            "brdf_per_sr": float(res.brdf_per_sr), "u_brdf_per_sr": float(res.u_brdf_per_sr),
-            "luminance_cd_m2": cap.luminance_cd_m2, "u_luminance_cd_m2": cap.u_luminance_cd_m2,
-            "illuminance_lx": float(res.illuminance_lx), "illuminance_normal_lx": e_perp.value_lx,
-            "stage_vertical_deg": motors[0], "stage_normal_deg": motors[1],
-            "arm_azimuth_deg": motors[2], "arm_polar_deg": motors[3],
-            "exposures_s": list(cap.exposures_s), "saturated_fraction": cap.saturated_fraction,
-            "flags": ";".join(dict.fromkeys(flags)), "time_utc": time_utc, "rig_time_s": rig_time,
-            "u_illuminance_normal_lx": e_perp.u_lx, "roi_std_cd_m2": cap.roi_std_cd_m2,
-            "n_frames": cap.n_frames,
-        }
+        measurement = Measurement(point, motors, angles, cap, tuple(flags), time_utc, rig_time)
         if cap.image_cd_m2 is not None:
             write_luminance_exr(self.writer.image_path(point.point_id), cap.image_cd_m2, {
-                **{k: row[k] for k in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg")},
-                "point_id": point.point_id, "exposures_s": list(cap.exposures_s),
-                "roi_window": [cap.roi_window.x0, cap.roi_window.y0, cap.roi_window.width,
-                               cap.roi_window.height]})
-        return row
+                "point_id": point.point_id, "theta_i_deg": float(angles.theta_i_deg),
+                "phi_i_deg": float(angles.phi_i_deg), "theta_o_deg": float(angles.theta_o_deg),
+                "phi_o_deg": float(angles.phi_o_deg), "exposures_s": list(cap.exposures_s),
+                "roi_window": [cap.roi_window.x0, cap.roi_window.y0, cap.roi_window.width, cap.roi_window.height]})
+        return measurement
 
-    def _measure_with_retry(self, point: PlannedPoint, e_perp: IlluminanceEstimate) -> None:
+    def _row(self, m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float) -> dict:
+        """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift)."""
+        cap, theta_i = m.capture, float(m.angles.theta_i_deg)
+        res = brdf_from_luminance(cap.luminance_cd_m2, cap.u_luminance_cd_m2, e_perp_lx, u_e_perp_lx,
+                                  theta_i, self.rig.geometry.angle_u_deg,
+                                  grazing_limit_deg=self.campaign.limits.grazing_limit_deg)
+        flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
+        # relative to the luminance, or to its uncertainty where the ROI is (nearly) black
+        lum = max(abs(cap.luminance_cd_m2), cap.u_luminance_cd_m2, 1e-30)
+        budget = {
+            "u_rel_noise": math.sqrt(max(cap.u_noise_cd_m2 ** 2 - cap.u_dark_cd_m2 ** 2, 0.0)) / lum,
+            "u_rel_dark": cap.u_dark_cd_m2 / lum,
+            "u_rel_texture": cap.u_texture_cd_m2 / lum,
+            "u_rel_calibration": self.dev.camera.sensor.calibration_u_rel,
+            "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2, 0.0)) / e_perp_lx,
+            "u_rel_drift": u_drift_lx / e_perp_lx,
+            "u_rel_angle": math.tan(math.radians(min(theta_i, 89.9999))) * math.radians(self.rig.geometry.angle_u_deg),
+        }
+        return {
+            "point_id": m.point.point_id, "series": m.point.series,
+            "theta_i_deg": theta_i, "phi_i_deg": float(m.angles.phi_i_deg),
+            "theta_o_deg": float(m.angles.theta_o_deg), "phi_o_deg": float(m.angles.phi_o_deg),
+            "brdf_per_sr": float(res.brdf_per_sr), "u_brdf_per_sr": float(res.u_brdf_per_sr),
+            "luminance_cd_m2": cap.luminance_cd_m2, "u_luminance_cd_m2": cap.u_luminance_cd_m2,
+            "illuminance_lx": float(res.illuminance_lx), "illuminance_normal_lx": e_perp_lx,
+            "stage_vertical_deg": m.motors_deg[0], "stage_normal_deg": m.motors_deg[1],
+            "arm_azimuth_deg": m.motors_deg[2], "arm_polar_deg": m.motors_deg[3],
+            "exposures_s": list(cap.exposures_s), "saturated_fraction": cap.saturated_fraction,
+            "flags": ";".join(dict.fromkeys(flags)), "time_utc": m.time_utc, "rig_time_s": m.rig_time_s,
+            "u_illuminance_normal_lx": u_e_perp_lx, "roi_std_cd_m2": cap.roi_std_cd_m2,
+            "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s, **budget,
+        }
+
+    def _measure_with_retry(self, point: PlannedPoint) -> None:
         try:
-            row = self._measure_point(point, e_perp)
+            m = self._measure_point(point)
         except DeviceError as exc:
             if not exc.transient:
                 raise
             self.writer.event("retry", point_id=point.point_id, device=exc.device, error=str(exc),
                               rig_time_s=self.rig_time())
             self.position = tuple(self._read_back())
-            row = self._measure_point(point, e_perp)
-            row["flags"] = ";".join(f for f in (row["flags"], "retried") if f)
-        self.writer.append_row(row)
+            m = self._measure_point(point)
+            m = replace(m, flags=m.flags + ("retried",))
         self.measured += 1
+        self._points_since_reading += 1
+        if self.interpolate:
+            self.pending.append(m)
+            # written ahead, so a crash before the next reading loses nothing
+            self.writer.event("point_pending", row=self._row(m, self.reading.value_lx, self.reading.u_lx, 0.0))
+        else:
+            self._append(self._row(m, self.reading.value_lx, self.reading.u_lx, 0.0))
 
     # -- the run -----------------------------------------------------------------------------
+    def _measure_all(self) -> None:
+        series_of = {s.index: s for s in self.plan.series}
+        first = True
+        last_series = 0
+        for series in self.plan.series:
+            points = [p for p in self.plan.points if p.series == series.index]
+            if not points:
+                continue
+            self._move(points[0].motors_deg)
+            for k, point in enumerate(points):
+                seconds_since = self.rig_time() - self.reading.rig_time_s if self.reading else 0.0
+                if first or self.schedule.due(k == 0, self._points_since_reading, seconds_since):
+                    self._new_reading(series.index)
+                    first = False
+                self._measure_with_retry(point)
+                s = series_of[point.series]
+                self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
+            last_series = series.index
+        self._new_reading(last_series)        # closing reading: brackets the last points
+
     def run(self) -> str:
         status, error = "failed", None
         try:
             self._log_identities()
             self._warm_up()
-            for series in self.plan.series:
-                points = [p for p in self.plan.points if p.series == series.index]
-                if not points:
-                    continue
-                self._move(points[0].motors_deg)
-                e_perp = self._measure_illuminance(series.index)
-                for point in points:
-                    self._measure_with_retry(point, e_perp)
-                    self._report(f"θi={series.theta_i_deg:g}° φi={series.phi_i_deg:g}°")
+            self._measure_all()
             status = "complete"
         except KeyboardInterrupt:
             status = "interrupted"
@@ -244,6 +309,10 @@ class Runner:
             self.writer.event("failed", error=error, rig_time_s=self.rig_time(), measured=self.measured)
             raise
         finally:
+            if self.pending:     # no closing reading: keep the points with the last E⊥, uncorrected
+                self.writer.event("pending_without_closing_reading", points=len(self.pending),
+                                  rig_time_s=self.rig_time())
+                self._write_pending(self.reading, None)
             problems = self.dev.safe_state()
             self.writer.event("safe_state", lamp_off=not any(p.startswith("lamp") for p in problems),
                               problems=problems, rig_time_s=self.rig_time())
@@ -252,5 +321,6 @@ class Runner:
                 counts={"planned": self.plan.n_planned, "measured": self.measured,
                         "skipped": len(self.plan.skipped),
                         "not_measured": len(self.plan.points) - self.measured},
+                uncertainty_budget=campaign_budget(self.rows, BUDGET_COLUMNS),
                 **({"error": error} if error else {}))
         return status

@@ -4,22 +4,36 @@ import numpy as np
 import pytest
 from hypothesis import given, settings as hyp_settings, strategies as st
 
-from drivers.interfaces import DeviceError, Frame, LuminanceCamera, SensorInfo, Window
-from rig.capture import CaptureSettings, DarkFrameCache, capture_point
+from drivers.interfaces import Clock, DeviceError, Frame, LuminanceCamera, SensorInfo, Window
+from rig.capture import CaptureSettings, DarkFrameCache, capture_point, fixed_bracket, frames_for_snr
 from rig.hdr import saturation_threshold_dn
+from rig.roi import block_means
 
 GAIN_DN_PER_E = 0.25
 CAL_CD_M2_PER_DN_S = 0.01
+READOUT_S = 0.05
 SETTINGS = CaptureSettings(roi_px=40)
+
+
+class FakeClock(Clock):
+    def __init__(self):
+        self.t = 1000.0
+
+    def now(self):
+        return self.t
+
+    def sleep(self, seconds):
+        self.t += seconds
 
 
 class FakeCamera(LuminanceCamera):
     """Scene of fixed photo-electron rates (e⁻/s per pixel) seen by an EMVA 1288 sensor."""
 
     def __init__(self, scene_e_s: np.ndarray, seed: int = 0, dark_e_s: float = 50.0,
-                 calibration_u_rel: float = 0.0):
+                 calibration_u_rel: float = 0.0, clock: FakeClock | None = None):
         self.scene_e_s = scene_e_s
         self.dark_e_s = dark_e_s
+        self.clock = clock
         self.rng = np.random.default_rng(seed)
         self.sensor = SensorInfo(width_px=scene_e_s.shape[1], height_px=scene_e_s.shape[0], bit_depth=12,
                                  gain_dn_per_e=GAIN_DN_PER_E, read_noise_e=8.0, black_level_dn=64.0,
@@ -33,6 +47,8 @@ class FakeCamera(LuminanceCamera):
 
     def _expose(self, rate_e_s: np.ndarray, exposure_s: float, window: Window, dark: bool) -> Frame:
         rows, cols = self.full_window().inner(window)
+        if self.clock:
+            self.clock.sleep(exposure_s + READOUT_S)
         electrons = self.rng.poisson((rate_e_s[rows, cols] + self.dark_e_s) * exposure_s)
         dn = np.round(GAIN_DN_PER_E * (electrons + self.rng.normal(0, 8.0, electrons.shape)) + 64.0)
         return Frame(np.clip(dn, 0, 4095).astype(np.uint16), exposure_s, window, dark=dark)
@@ -96,6 +112,7 @@ def test_a_dim_roi_gets_the_longest_exposure_and_is_flagged():
     camera = FakeCamera(flat(0.0))
     capture = capture_point(camera, SETTINGS, DarkFrameCache())
     assert capture.exposures_s == (10.0,) and "low_signal" in capture.flags
+    assert sum(t == 10.0 for t, _ in camera.light_calls) == 1     # averaging could not help: not tried
     assert capture.luminance_cd_m2 == pytest.approx(0.0, abs=4 * capture.u_luminance_cd_m2)
 
 
@@ -138,9 +155,10 @@ def test_dark_cache_keys_on_time_and_window_and_can_be_invalidated():
 
 
 @hyp_settings(max_examples=100, deadline=None)
-@given(exposure_s=st.floats(1e-6, 100.0))
-def test_snap_is_idempotent_and_stays_in_range(exposure_s):
-    sensor = FakeCamera(flat(0.0, (2, 2))).sensor
+@given(exposure_s=st.floats(1e-6, 100.0), max_exposure_s=st.sampled_from([10.0, 15.0]))
+def test_snap_is_idempotent_and_stays_in_range(exposure_s, max_exposure_s):
+    """15 s is no rung of the ladder: the longest exposure must still snap to itself."""
+    sensor = dataclasses.replace(FakeCamera(flat(0.0, (2, 2))).sensor, max_exposure_s=max_exposure_s)
     snapped = DarkFrameCache().snap(exposure_s, sensor)
     assert sensor.min_exposure_s <= snapped <= sensor.max_exposure_s
     assert DarkFrameCache().snap(snapped, sensor) == snapped
@@ -176,6 +194,12 @@ def test_calibration_uncertainty_is_combined():
 def test_bad_settings_and_bad_frames_are_refused():
     with pytest.raises(ValueError, match="target_fraction"):
         CaptureSettings(target_fraction=1.5)
+    with pytest.raises(ValueError, match="mode .*adaptive, fixed_bracket"):
+        CaptureSettings(mode="hdr")
+    with pytest.raises(ValueError, match="max_frames .*frames_per_exposure"):
+        CaptureSettings(frames_per_exposure=4, max_frames=2)
+    with pytest.raises(ValueError, match="dark_max_age_s"):
+        CaptureSettings(dark_max_age_s=0.0)
     with pytest.raises(ValueError, match="roi_px"):
         capture_point(FakeCamera(flat(1.0, (30, 30))), SETTINGS, DarkFrameCache())
 
@@ -186,3 +210,124 @@ def test_bad_settings_and_bad_frames_are_refused():
 
     with pytest.raises(DeviceError):
         capture_point(CroppingCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+
+
+def test_adaptive_needs_fewer_exposures_and_less_time_than_the_fixed_bracket_and_both_are_unbiased():
+    captures = {}
+    for mode in ("adaptive", "fixed_bracket"):
+        camera, darks = FakeCamera(flat(1.0e5), seed=7), DarkFrameCache()
+        settings = dataclasses.replace(SETTINGS, mode=mode)
+        capture_point(camera, settings, darks)                 # first point: takes the darks
+        camera.light_calls.clear()
+        cap = capture_point(camera, settings, darks)
+        assert cap.n_darks == 0 and cap.capture_time_s == pytest.approx(sum(t for t, _ in camera.light_calls))
+        assert cap.luminance_cd_m2 == pytest.approx(luminance(1.0e5), abs=4 * cap.u_luminance_cd_m2)
+        assert cap.flags == ()
+        captures[mode] = cap
+    adaptive, fixed = captures["adaptive"], captures["fixed_bracket"]
+    assert len(adaptive.exposures_s) == 1 and len(fixed.exposures_s) == 5
+    assert adaptive.n_frames < fixed.n_frames and adaptive.capture_time_s < 0.25 * fixed.capture_time_s
+
+
+def test_fixed_bracket_is_five_exposures_one_stop_apart_centred_on_the_metered_one():
+    camera = FakeCamera(flat(1.0e5))
+    cap = capture_point(camera, dataclasses.replace(SETTINGS, mode="fixed_bracket"), DarkFrameCache())
+    adaptive = capture_point(FakeCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    assert len(cap.exposures_s) == 5
+    np.testing.assert_allclose(np.diff(np.log2(cap.exposures_s)), 1.0, atol=1e-9)
+    assert cap.exposures_s[2] == adaptive.exposures_s[0]
+    assert cap.saturated_fraction == 1.0 and "roi_saturated" not in cap.flags   # the longest clip, are left out
+
+
+@pytest.mark.parametrize("centre_s", [1e-4, 3e-3, 10.0])
+def test_fixed_bracket_is_shifted_into_the_sensor_range_keeping_its_count(centre_s):
+    sensor, darks = FakeCamera(flat(0.0, (2, 2))).sensor, DarkFrameCache()
+    bracket = fixed_bracket(darks.snap(centre_s, sensor), dataclasses.replace(SETTINGS, mode="fixed_bracket"),
+                            darks, sensor)
+    assert len(bracket) == 5 and sensor.min_exposure_s <= bracket[0] and bracket[-1] <= sensor.max_exposure_s
+    np.testing.assert_allclose(np.diff(np.log2(bracket)), 1.0, atol=1 / 6)     # within a ladder step at the ends
+    assert all(darks.snap(t, sensor) == t for t in bracket)
+
+
+def test_frame_averaging_reaches_the_target_snr_on_a_dark_scene_within_max_frames():
+    settings = dataclasses.replace(SETTINGS, target_snr=50.0)
+    camera = FakeCamera(flat(2.0))                      # 20 e⁻ in 10 s over 500 e⁻ of dark current
+    cap = capture_point(camera, settings, DarkFrameCache())
+    averaged = sum(t == 10.0 for t, _ in camera.light_calls)
+    assert cap.exposures_s == (10.0,) and 1 < averaged < settings.max_frames
+    assert cap.luminance_cd_m2 / cap.u_noise_cd_m2 >= 50.0
+    assert cap.n_darks >= averaged                      # the dark's noise is averaged alike
+    assert cap.luminance_cd_m2 == pytest.approx(luminance(2.0), abs=4 * cap.u_luminance_cd_m2)
+
+    camera = FakeCamera(flat(2.0))
+    cap = capture_point(camera, dataclasses.replace(settings, max_frames=3), DarkFrameCache())
+    assert sum(t == 10.0 for t, _ in camera.light_calls) == 3 and cap.luminance_cd_m2 / cap.u_noise_cd_m2 < 50.0
+
+
+def test_frames_for_snr():
+    """Target SNR 10 on a mean of 10: the variance must fall to 1."""
+    settings = dataclasses.replace(SETTINGS, target_snr=10.0, max_frames=16, min_snr=2.0)
+
+    def frame_count(var_frames, var_dark, m, n=1, mean=10.0):
+        return frames_for_snr(mean, var_frames, var_dark, n, m, settings)
+
+    assert frame_count(0.5, 0.0, 1) == 1                                   # already there
+    assert frame_count(4.0, 0.0, 1) == 4                                   # variance ∝ 1/n
+    assert frame_count(2.0, 2.0, 1) == 4                                   # darks topped up alike
+    assert frame_count(2.0, 0.5, 8) == 4 and frame_count(2.0, 0.5, 1) == 3   # 8 darks do not shrink before n > 8
+    assert frame_count(40.0, 0.0, 1) == 16                                 # out of reach: max_frames
+    assert frame_count(40.0, 0.0, 2, n=2, mean=1.0) == 2                   # hopeless (< min_snr): no averaging
+
+
+def test_darks_are_reused_until_too_old_on_the_rig_clock():
+    clock = FakeClock()
+    camera, darks = FakeCamera(flat(1.0e5), clock=clock), DarkFrameCache(clock=clock)
+    settings = dataclasses.replace(SETTINGS, dark_max_age_s=100.0)
+    first = capture_point(camera, settings, darks)
+    assert first.n_darks == 1
+    calls = camera.light_calls + camera.dark_calls
+    assert first.capture_time_s == pytest.approx(sum(t + READOUT_S for t, _ in calls))
+    clock.sleep(50.0)
+    assert capture_point(camera, settings, darks).n_darks == 0
+    clock.sleep(60.0)                                    # the dark is now 110 s old
+    assert capture_point(camera, settings, darks).n_darks == 1
+    assert len(camera.dark_calls) == 2
+    with pytest.raises(ValueError, match="clock"):
+        capture_point(camera, settings, DarkFrameCache())
+
+
+def test_a_short_dark_stack_is_topped_up_and_keeps_its_age():
+    clock = FakeClock()
+    camera, darks = FakeCamera(flat(0.0), clock=clock), DarkFrameCache(clock=clock)
+    t, roi = darks.snap(0.01, camera.sensor), Window(10, 10, 20, 20)
+    first = darks.get(camera, t, roi, max_age_s=10.0)
+    clock.sleep(6.0)
+    topped = darks.get(camera, t, roi, frames=3, max_age_s=10.0)
+    assert topped.shape == (3, 20, 20) and np.array_equal(topped[0], first[0]) and darks.n_taken == 3
+    clock.sleep(6.0)
+    assert darks.get(camera, t, roi, max_age_s=10.0).shape == (1, 20, 20) and darks.n_taken == 4
+
+
+def test_texture_and_noise_components():
+    flat_cap = capture_point(FakeCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    assert flat_cap.u_texture_cd_m2 < min(2 * flat_cap.u_noise_cd_m2, 1e-3 * flat_cap.luminance_cd_m2)
+    assert 0 < flat_cap.u_dark_cd_m2 < flat_cap.u_noise_cd_m2
+
+    rng = np.random.default_rng(3)
+    grains = 1.0e5 * (1 + 0.1 * rng.standard_normal((10, 12)))
+    camera = FakeCamera(np.kron(grains, np.ones((10, 10))))    # 10-px grains on the block grid
+    cap = capture_point(camera, SETTINGS, DarkFrameCache())
+    blocks = block_means(roi_of(camera, cap)) * GAIN_DN_PER_E * CAL_CD_M2_PER_DN_S
+    texture = blocks.std(ddof=1) / np.sqrt(blocks.size)
+    assert cap.u_texture_cd_m2 == pytest.approx(texture, rel=0.05) and cap.u_texture_cd_m2 > 10 * cap.u_noise_cd_m2
+    assert cap.u_luminance_cd_m2 ** 2 == pytest.approx(cap.u_texture_cd_m2 ** 2 + cap.u_noise_cd_m2 ** 2)
+
+
+def test_a_camera_that_cannot_read_windows_is_cropped():
+    class FullFrameCamera(FakeCamera):
+        def _expose(self, rate_e_s, exposure_s, window, dark):
+            return super()._expose(rate_e_s, exposure_s, self.full_window(), dark)
+
+    cap = capture_point(FullFrameCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    assert cap.roi_window == Window(40, 30, 40, 40) and cap.image_cd_m2 is None and cap.flags == ()
+    assert cap.luminance_cd_m2 == pytest.approx(luminance(1.0e5), abs=4 * cap.u_luminance_cd_m2)

@@ -55,7 +55,8 @@ def test_dataset_files_and_manifest(reduced_run):
     assert not (reduced_run / "images").exists()
     events = [json.loads(l)["event"] for l in (reduced_run / "events.jsonl").read_text().splitlines()]
     assert events[0] == "devices" and "warmup_stable" in events and events[-1] == "safe_state"
-    assert events.count("illuminance") == 5
+    assert events.count("illuminance") == 5 + 1          # one per series and a closing reading
+    assert events.count("point_pending") == len(rows)     # each point written ahead of its E⊥ bracket
 
 
 def test_achieved_angles_come_from_read_back_motors(reduced_run):

@@ -37,6 +37,33 @@ def test_noise_free_samples_give_the_rate_and_the_closed_form_variance():
     assert np.all(merged.n_used == 2) and not merged.saturated.any() and not merged.clipped.any()
 
 
+def test_dark_frame_variance_is_split_out_in_closed_form():
+    """Frames' own noise + the subtracted darks' noise = the merge variance; 2 frames, 3 darks."""
+    rate_dn_s, times = 1.0e4, np.array([0.01, 0.1])
+    raw = [np.full((2, 2, 3), 64 + rate_dn_s * t, np.uint16) for t in times]
+    darks = [np.full((3, 2, 3), 64, np.uint16)] * 2
+    merged = merge_exposures(raw, darks, times, SENSOR)
+    rho2 = (0.25 * 8.0) ** 2 + QUANTISATION_VAR_DN2
+    frame_var, dark_var = (0.25 * rate_dn_s * times + rho2) / 2, rho2 / 3 * np.ones(2)
+    weights = times ** 2 / (frame_var + dark_var)
+    share = weights / weights.sum()
+    np.testing.assert_allclose(merged.var_dark, np.sum(share ** 2 * dark_var / times ** 2))
+    np.testing.assert_allclose(merged.var_rate - merged.var_dark, np.sum(share ** 2 * frame_var / times ** 2))
+    np.testing.assert_allclose(merged.var_rate, 1 / weights.sum())
+
+
+def test_a_shared_dark_correlates_two_merges_by_var_dark():
+    """Two captures that reuse one dark share its noise: their covariance is var_dark, not 0."""
+    rng = np.random.default_rng(6)
+    times = [0.004, 0.016]
+    darks = [expose(rng, 0.0, t, 1, dark=True)[0] for t in times]
+    merges = [merge_exposures([expose(rng, 2.0e4, t, 4) for t in times], darks, times, SENSOR) for _ in range(2)]
+    first, second = (m.rate_dn_s.ravel() for m in merges)
+    covariance = np.cov(first, second)[0, 1]
+    assert merges[0].var_dark.mean() > 0.3 * merges[0].var_rate.mean()        # dark-dominated on purpose
+    assert covariance / merges[0].var_dark.mean() == pytest.approx(1.0, abs=0.06)
+
+
 def test_merge_of_poisson_frames_is_unbiased_and_its_variance_is_right():
     rng = np.random.default_rng(1)
     rate_e_s, times = 2.0e5, [0.001, 0.004, 0.016]
@@ -77,6 +104,7 @@ def test_pixels_saturated_in_every_exposure_are_lower_bounds():
     assert np.all(merged.rate_dn_s <= 1.0e7 * SENSOR.gain_dn_per_e)
     np.testing.assert_allclose(merged.rate_dn_s, (raw[0][0] - darks[0].astype(float)) / 0.01)
     assert np.all(np.isfinite(merged.var_rate)) and np.all(merged.var_rate > 0)
+    assert np.all(merged.var_dark > 0) and np.all(merged.var_dark < merged.var_rate)
 
 
 def test_a_saturated_frame_drops_its_whole_exposure_at_that_pixel():

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from rig.roi import block_means, roi_statistics
+from rig.roi import block_means, mean_noise, roi_statistics
 
 
 def test_block_means_tile_from_the_corner_and_drop_partial_blocks():
@@ -15,6 +15,11 @@ def test_flat_image_closed_form():
     assert stats.mean == 5.0 and stats.u_mean == 0.0 and stats.std == 0.0
     assert stats.u_mean_noise == pytest.approx(2.0 / np.sqrt(1200))
     assert stats.n == 1200 and stats.n_blocks == 12
+    assert stats.u_texture == 0.0                      # noise alone, and more than the block spread
+
+
+def test_mean_noise_closed_form():
+    assert mean_noise(np.array([[1.0, 3.0], [0.0, 0.0]])) == pytest.approx(0.5)     # √4 / 4
 
 
 def test_white_noise_block_and_propagated_uncertainties_agree():
@@ -41,6 +46,8 @@ def test_block_uncertainty_covers_correlated_texture():
     assert np.sqrt(np.mean(np.square(u_block))) == pytest.approx(spread, rel=0.15)
     assert np.mean(u_naive) < 0.4 * spread
     assert np.mean(u_block) > 5 * stats.u_mean_noise
+    assert stats.u_texture == pytest.approx(np.sqrt(stats.u_mean ** 2 - stats.u_mean_noise ** 2))
+    assert stats.u_texture == pytest.approx(stats.u_mean, rel=0.01)      # texture-dominated
 
 
 def test_too_small_or_mismatched_rois_are_refused():
@@ -58,5 +65,5 @@ def test_statistics_follow_an_affine_change_of_unit(scale, offset, seed):
     base = roi_statistics(image, variance)
     moved = roi_statistics(scale * image + offset, scale ** 2 * variance)
     assert moved.mean == pytest.approx(scale * base.mean + offset, rel=1e-9, abs=1e-9 * abs(offset))
-    for name in ("u_mean", "u_mean_noise", "std"):
+    for name in ("u_mean", "u_mean_noise", "std", "u_texture"):
         assert getattr(moved, name) == pytest.approx(scale * getattr(base, name), rel=1e-6)
