@@ -11,6 +11,7 @@ from drivers.interfaces import DeviceError, RigDevices
 from rig.campaign import Campaign, load_campaign
 from rig.dataset import DatasetError
 from rig.execute import execute
+from rig.resume import prepare_resume
 from rig.plan import SKIP_REASONS, Plan, build_plan, estimate_rig_time_s
 from rig.progress import ProgressBar, format_duration
 from rig.configfile import ConfigFileError
@@ -96,7 +97,37 @@ def cmd_devices(args) -> int:
     return EXIT_OK
 
 
+def cmd_resume(args) -> int:
+    try:
+        r = prepare_resume(args.resume, force=args.force)
+    except (ConfigFileError, DatasetError) as exc:
+        return _fail(str(exc))
+    left = len(r.plan.points) - len(r.done_rows)
+    print(f"rig {__version__}: resuming {r.campaign.name} in {args.resume}: {len(r.done_rows)} points done, "
+          f"{left} to measure", file=sys.stderr)
+    outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume), writer=r.writer,
+                      done_rows=r.done_rows, progress=None if args.quiet else ProgressBar(), handle_signals=True)
+    return _report_outcome(outcome, len(r.plan.skipped))
+
+
+def _report_outcome(outcome, n_skipped: int) -> int:
+    if outcome.status == "failed":
+        print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {outcome.out}",
+              file=sys.stderr)
+        return EXIT_FAILED
+    print(f"{outcome.status}: {outcome.measured} points measured, {n_skipped} skipped; "
+          f"rig time {format_duration(outcome.rig_time_s)}, wall time {outcome.wall_s:.1f} s; "
+          f"dataset in {outcome.out}" + ("" if outcome.status == "complete" else
+                                        f" (continue with: rig run --resume {outcome.out})"),
+          file=sys.stderr)
+    return EXIT_OK if outcome.status == "complete" else EXIT_INTERRUPTED
+
+
 def cmd_run(args) -> int:
+    if args.resume:
+        return cmd_resume(args)
+    if not args.campaign:
+        return _fail("give a campaign file, or --resume DIR")
     try:
         campaign, rig, plan = _load(args)
     except ConfigFileError as exc:
@@ -113,17 +144,10 @@ def cmd_run(args) -> int:
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
     try:
         outcome = execute(campaign, Path(args.campaign), rig, plan, out,
-                          progress=None if args.quiet else ProgressBar())
+                          progress=None if args.quiet else ProgressBar(), handle_signals=True)
     except DatasetError as exc:
         return _fail(str(exc))
-    if outcome.status == "failed":
-        print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {out}",
-              file=sys.stderr)
-        return EXIT_FAILED
-    print(f"{outcome.status}: {outcome.measured} points measured, {len(plan.skipped)} skipped; "
-          f"rig time {format_duration(outcome.rig_time_s)}, wall time {outcome.wall_s:.1f} s; dataset in {out}",
-          file=sys.stderr)
-    return EXIT_OK if outcome.status == "complete" else EXIT_INTERRUPTED
+    return _report_outcome(outcome, len(plan.skipped))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -131,8 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"rig {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p_run = sub.add_parser("run", help="measure a campaign (by default on the built-in simulated rig)")
-    p_run.add_argument("campaign", help="campaign YAML file")
+    p_run.add_argument("campaign", nargs="?", help="campaign YAML file")
     p_run.add_argument("--out", help="dataset folder (default: output.dir of the campaign)")
+    p_run.add_argument("--resume", metavar="DIR", help="continue an interrupted or failed campaign in DIR")
+    p_run.add_argument("--force", action="store_true", help="with --resume: even if the campaign file changed")
     p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
     p_run.add_argument("--quiet", action="store_true", help="no progress bar")
     p_run.set_defaults(func=cmd_run)

@@ -107,14 +107,31 @@ def _csv_line(values: Iterable[Any]) -> str:
     return buf.getvalue()
 
 
+def cut_torn_tail(path: Path) -> int:
+    """Drop a last line that has no newline: a write cut short by a kill. Returns bytes removed."""
+    size = path.stat().st_size
+    if size == 0:
+        return 0
+    with open(path, "rb+") as fh:
+        data = fh.read()
+        keep = data.rfind(b"\n") + 1
+        if keep == size:
+            return 0
+        fh.truncate(keep)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return size - keep
+
+
 class DatasetWriter:
-    """Creates a new dataset folder and appends to it; refuses to touch an existing dataset."""
+    """Creates a new dataset folder and appends to it; refuses to touch an existing dataset
+    (`reopen` continues one, for a resume)."""
 
     def __init__(self, out_dir: str | Path, manifest: Mapping[str, Any]):
         self.dir = Path(out_dir)
         if self.dir.exists() and any(self.dir.iterdir()):
             raise DatasetError(f"output folder {self.dir} already exists and is not empty; "
-                               "choose another --out (nothing was overwritten)")
+                               "choose another --out, or continue it with --resume (nothing was overwritten)")
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
             probe = self.dir / ".write-test"
@@ -126,10 +143,30 @@ class DatasetWriter:
             "format": FORMAT, "format_version": FORMAT_VERSION, "conventions": CONVENTIONS,
             "created_utc": utc_now(), "status": "running", **manifest}
         write_json_atomic(self.dir / "dataset.json", self.manifest)
-        self._rows = _AppendLog(self.dir / "brdf.csv")
+        self._open_logs()
         self._rows.append(_csv_line(BRDF_COLUMNS))
-        self._events = _AppendLog(self.dir / "events.jsonl")
         self.n_rows = 0
+
+    @classmethod
+    def reopen(cls, out_dir: str | Path) -> "DatasetWriter":
+        """Continue an existing dataset: torn last lines (a kill mid-write) are cut, then appended to."""
+        self = cls.__new__(cls)
+        self.dir = Path(out_dir)
+        try:
+            self.manifest = json.loads((self.dir / "dataset.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise DatasetError(f"{self.dir}: cannot resume, no readable dataset.json ({exc})") from None
+        if self.manifest.get("format") != FORMAT:
+            raise DatasetError(f"{self.dir}: not a {FORMAT} folder")
+        self.cut_bytes = {name: cut_torn_tail(self.dir / name) for name in ("brdf.csv", "events.jsonl")}
+        self._open_logs()
+        with open(self.dir / "brdf.csv", encoding="utf-8") as fh:
+            self.n_rows = max(sum(1 for _ in fh) - 1, 0)
+        return self
+
+    def _open_logs(self) -> None:
+        self._rows = _AppendLog(self.dir / "brdf.csv")
+        self._events = _AppendLog(self.dir / "events.jsonl")
 
     def write_skipped(self, skipped: Iterable[Any]) -> None:
         lines = [_csv_line(SKIPPED_COLUMNS)]

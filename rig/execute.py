@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator, Sequence
 
 from rig import __version__
 from rig.campaign import Campaign, campaign_sha256
@@ -41,23 +45,53 @@ class RunOutcome:
     error: str | None = None
 
 
+@contextmanager
+def stop_on_signals(runner: Runner) -> Iterator[None]:
+    """First Ctrl+C: finish the point, park, lamp off. Second Ctrl+C or SIGTERM: stop the axes now."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_sigint(signum, frame):
+        if runner.stop_requested:
+            raise KeyboardInterrupt
+        runner.request_stop("Ctrl+C (again to stop the axes now)")
+
+    def on_sigterm(signum, frame):
+        raise KeyboardInterrupt
+
+    saved = {sig: signal.signal(sig, handler) for sig, handler in ((signal.SIGINT, on_sigint),
+                                                                    (signal.SIGTERM, on_sigterm))}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
 def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
-            progress: ProgressCallback | None = None) -> RunOutcome:
-    """Measure `plan` into a new dataset folder `out` (DatasetError if it cannot be created).
+            progress: ProgressCallback | None = None, *, writer: DatasetWriter | None = None,
+            done_rows: Sequence[dict] = (), handle_signals: bool = False) -> RunOutcome:
+    """Measure `plan` into a new dataset folder `out` (DatasetError if it cannot be created),
+    or into `writer`'s reopened folder, leaving out `done_rows` (a resume).
 
     Device and other failures do not raise: they end as status `failed` with the
     completed points kept; the runner has already made the rig safe.
     """
-    writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
-    writer.write_skipped(plan.skipped)
+    if writer is None:
+        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
+        writer.write_skipped(plan.skipped)
     truth = campaign.sample.simulated_brdf
     wall0 = time.perf_counter()
     runner = None
     try:
         with open_rig(rig, truth.model if truth else None, truth.params if truth else None) as devices:
-            runner = Runner(campaign, plan, devices, writer, rig, progress=progress)
-            status = runner.run()
+            runner = Runner(campaign, plan, devices, writer, rig, progress=progress, done_rows=done_rows)
+            with stop_on_signals(runner) if handle_signals else nullcontext():
+                status = runner.run()
         error = None
+    except KeyboardInterrupt:    # a second Ctrl+C while parking; the runner made the rig safe
+        status, error = "interrupted", None
     except Exception as exc:
         status, error = "failed", f"{exc}"
         if runner is None:       # the rig never came up, so no runner recorded the failure

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -42,6 +42,10 @@ class Progress:
 
 
 ProgressCallback = Callable[[Progress], None]
+
+
+class StopRequested(Exception):
+    """A graceful stop (first Ctrl+C): raised between points, never inside one."""
 
 
 @dataclass(frozen=True)
@@ -76,8 +80,12 @@ class Runner:
     #: Lamp current below this fraction of the setpoint stops the run (burn-out, open circuit).
     LAMP_CURRENT_MIN_FRACTION = 0.5
 
+    #: Where the axes go after a graceful stop (home).
+    PARK_DEG = (0.0, 0.0, 0.0, 0.0)
+
     def __init__(self, campaign: Campaign, plan: Plan, devices: RigDevices, writer: DatasetWriter,
-                 rig: RigConfig, progress: ProgressCallback | None = None):
+                 rig: RigConfig, progress: ProgressCallback | None = None, done_rows: Sequence[dict] = ()):
+        """`done_rows`: rows already in the dataset (a resume); their points are not measured again."""
         self.campaign = campaign
         self.plan = plan
         self.dev = devices
@@ -91,8 +99,10 @@ class Runner:
         self.schedule = ReadingSchedule(ill.remeasure, ill.every)
         self.interpolate = ill.correction == "interpolate"
         self.t0 = devices.clock.now()
-        self.measured = 0
-        self.rows: list[dict] = []                 # written rows, for the campaign budget
+        self.rows: list[dict] = list(done_rows)     # written rows, for the campaign budget
+        self.done_ids = {r["point_id"] for r in done_rows}
+        self.measured = len(done_rows)
+        self.stop_requested = False
         self.pending: list[Measurement] = []       # waiting for the next E⊥ reading
         self.reading: IlluminanceEstimate | None = None
         self._points_since_reading = 0
@@ -274,12 +284,23 @@ class Runner:
             self._append(self._row(m, self.reading.value_lx, self.reading.u_lx, 0.0))
 
     # -- the run -----------------------------------------------------------------------------
+    def request_stop(self, reason: str) -> None:
+        """Finish the point in flight, then stop cleanly (called from a signal handler)."""
+        self.stop_requested = True
+        self.writer.event("stop_requested", reason=reason, rig_time_s=self.rig_time())
+        self._report(f"stopping after this point: {reason}")
+
+    def _park(self) -> None:
+        self._report("parking")
+        self._move(self.PARK_DEG)
+        self.writer.event("parked", position_deg=list(self.PARK_DEG), rig_time_s=self.rig_time())
+
     def _measure_all(self) -> None:
         series_of = {s.index: s for s in self.plan.series}
         first = True
-        last_series = 0
+        last_series = self.plan.series[0].index if self.plan.series else 0
         for series in self.plan.series:
-            points = [p for p in self.plan.points if p.series == series.index]
+            points = [p for p in self.plan.points if p.series == series.index and p.point_id not in self.done_ids]
             if not points:
                 continue
             self._move(points[0].motors_deg)
@@ -291,8 +312,11 @@ class Runner:
                 self._measure_with_retry(point)
                 s = series_of[point.series]
                 self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
-            last_series = series.index
-        self._new_reading(last_series)        # closing reading: brackets the last points
+                last_series = series.index
+                if self.stop_requested:
+                    raise StopRequested
+        if self.reading is not None:
+            self._new_reading(last_series)        # closing reading: brackets the last points
 
     def run(self) -> str:
         status, error = "failed", None
@@ -301,6 +325,11 @@ class Runner:
             self._warm_up()
             self._measure_all()
             status = "complete"
+        except StopRequested:
+            status = "interrupted"
+            self.writer.event("interrupted", graceful=True, rig_time_s=self.rig_time(), measured=self.measured)
+            self._new_reading(self.plan.series[-1].index)     # brackets the points measured since the last one
+            self._park()
         except KeyboardInterrupt:
             status = "interrupted"
             self.writer.event("interrupted", rig_time_s=self.rig_time(), measured=self.measured)
