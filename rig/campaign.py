@@ -96,13 +96,13 @@ class Output(_Strict):
 class Capture(_Strict):
     """HDR capture of one point (see rig.capture.CaptureSettings)."""
 
+    roi_px: int = Field(70, ge=4, le=1000)
     mode: Literal["adaptive", "fixed_bracket"] = "adaptive"
     target_snr: float = Field(200.0, gt=0)
     max_frames: int = Field(16, ge=1, le=256)
     bracket_count: int = Field(5, ge=1, le=12)
     bracket_step_stops: float = Field(1.0, gt=0, le=4)
     dark_max_age_s: float | None = Field(1800.0, gt=0)
-    roi_px: int = Field(70, ge=4, le=1000)
     probe_exposure_s: float = Field(0.002, gt=0)
     target_fraction: float = Field(0.7, gt=0, le=0.95)
     bracket_stops: float = Field(2.0, gt=0, le=6)

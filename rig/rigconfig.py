@@ -119,8 +119,20 @@ class SimulationConfig(_Strict):
     dark_current_e_s: float = Field(20.0, ge=0)
     dsnu_e_s: float = Field(2.0, ge=0)                   # pixel-to-pixel dark-current spread
     prnu_rel: float = Field(0.005, ge=0)                 # pixel-to-pixel gain spread
-    texture_contrast: float = Field(0.10, ge=0, lt=1)    # std of the sample's reflectance grains
+    #: Relative std of the static reflectance grains at their lattice nodes (seen alike from every view).
+    texture_contrast: float = Field(0.03, ge=0, lt=1)
     texture_grain_m: float = Field(0.001, gt=0)
+    #: Relative std of the direction-dependent glint factor (glass beads, aggregate) at its lattice nodes:
+    #: it makes the ROI mean change from view to view.
+    glint_contrast: float = Field(0.10, ge=0, lt=1)
+    #: Spatial lattice pitch of the glints.
+    glint_grain_m: float = Field(0.0005, gt=0)
+    #: Lattice pitch of the glints in the half vector's projection on the sample (≈ its rotation near the
+    #: normal): ROI means of two views correlate ½ at 0.6 pitch apart and not at all beyond 2 pitches.
+    glint_angle_deg: float = Field(2.0, gt=0)
+    #: Std of each axis's fixed zero error (zero calibration, sample mounting), drawn once per run: the
+    #: encoders read the physical angle minus it, so it is what `geometry.angle_u_deg` must cover.
+    axis_zero_sigma_deg: float = Field(0.01, ge=0)
     ambient_cd_m2: float = Field(0.0, ge=0)              # stray light on unlit parts
 
 

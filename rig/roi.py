@@ -7,7 +7,10 @@ uncertainty of the mean is therefore taken from the spread of means of blocks
 larger than a grain (10 × 10 px by default): block means are nearly
 independent, and their spread contains both the pixel noise and the texture,
 whereas std/√n would assume independent pixels and understate it by roughly
-the square root of the number of pixels per grain. The propagated per-pixel
+the square root of the number of pixels per grain. Blocks only a couple of
+grains wide are still correlated with their neighbours, so the covariance of
+edge-sharing blocks, estimated from the same blocks, is added to the variance
+of their mean (clipped at zero: it may only widen the uncertainty). The propagated per-pixel
 variance alone is reported next to it to show how much of the total is noise,
 and the difference of the two squares is the texture's share.
 """
@@ -45,10 +48,20 @@ def mean_noise(variance: np.ndarray) -> float:
 
 
 def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
-    """Means of the whole block_px × block_px blocks tiling `image` from its corner (flat)."""
+    """Means of the whole block_px × block_px blocks tiling `image` from its corner, (rows, cols)."""
     rows, cols = image.shape[0] // block_px, image.shape[1] // block_px
     tiles = image[:rows * block_px, :cols * block_px].reshape(rows, block_px, cols, block_px)
-    return tiles.mean(axis=(1, 3)).ravel()
+    return tiles.mean(axis=(1, 3))
+
+
+def u_mean_of_blocks(means: np.ndarray) -> float:
+    """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included."""
+    dev = means - means.mean()
+    n = means.size
+    var = float(np.sum(dev ** 2)) / (n - 1)
+    products = np.concatenate([(dev[:, :-1] * dev[:, 1:]).ravel(), (dev[:-1, :] * dev[1:, :]).ravel()])
+    cov = float(np.clip(products.mean(), 0.0, var)) if products.size else 0.0
+    return float(np.sqrt((n * var + 2 * products.size * cov) / n ** 2))
 
 
 def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOCK_PX) -> RoiStats:
@@ -74,7 +87,7 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
         raise ValueError(f"ROI {image.shape} holds fewer than two {block_px}×{block_px} px blocks")
     n = image.size
     return RoiStats(mean=float(image.mean()),
-                    u_mean=float(means.std(ddof=1) / np.sqrt(means.size)),
+                    u_mean=u_mean_of_blocks(means),
                     u_mean_noise=mean_noise(variance),
                     std=float(image.std(ddof=1)),
                     n=n, n_blocks=int(means.size))

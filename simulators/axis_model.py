@@ -2,12 +2,15 @@
 
 The controller's pulse generator follows a trapezoidal profile (rig.motion)
 from the command position to the target: that is the command position. The
-load (what the camera sees and the load-side encoder reads) follows it with
-an offset that changes during a move from its old to its new value: half the
-backlash behind the last direction of travel, plus the repeatability error
-of the move (`positioning_sigma_deg`). The move is in position `settle_s`
-after the profile ends. State changes only on commands; everything else is
-computed from the clock, so reads taken during a move see it in progress.
+load-side encoder reading follows it with an offset that changes during a
+move from its old to its new value: half the backlash behind the last
+direction of travel, plus the repeatability error of the move
+(`positioning_sigma_deg`). The physical angle (what the camera sees) is the
+encoder reading plus the axis's zero error, drawn once per run
+(`axis_zero_sigma_deg`: zero calibration, sample mounting), which no
+read-back shows. The move is in position `settle_s` after the profile ends.
+State changes only on commands; everything else is computed from the clock,
+so reads taken during a move see it in progress.
 
 Simplifications: a new START during a move restarts from rest at the present
 position, and STOP halts at once (the deceleration ramp is not modelled).
@@ -33,7 +36,7 @@ class _Move:
     target_deg: float
     speed_deg_s: float
     accel_deg_s2: float
-    offset0_deg: float        # load minus command position at t0 ...
+    offset0_deg: float        # encoder minus command position at t0 ...
     offset1_deg: float        # ... and once the move is done
     settle_s: float = 0.0     # in position this long after the profile ends
     extra_s: float = 0.0      # homing: the search for the home sensor after the run
@@ -53,7 +56,7 @@ class AxisState:
     alarm: int
     homed: bool
     command_deg: float
-    true_deg: float
+    true_deg: float           # physical angle: encoder reading + zero error
     encoder_steps: int
     command_steps: int
 
@@ -71,6 +74,8 @@ class AxisModel:
         self._latched_alarm = 0
         self._was_homed = False
         self._pending_alarms: list[int] = []
+        #: Physical minus encoder angle, fixed for the run.
+        self.zero_offset_deg = self._draw_deg(world.config.simulation.axis_zero_sigma_deg)
         rest = -0.5 * backlash_deg
         self._move = _Move(world.clock.now(), 0.0, 0.0, cfg.speed_deg_s, cfg.accel_deg_s2, rest, rest)
         world.axis_truth[name] = self.true_position_deg
@@ -81,22 +86,28 @@ class AxisModel:
         return position_at(m.start_deg, m.target_deg, self.world.clock.now() - m.t0, m.speed_deg_s,
                            m.accel_deg_s2)
 
-    def true_position_deg(self) -> float:
+    def encoder_position_deg(self) -> float:
+        """What the load-side encoder reads (before quantisation to steps)."""
         m = self._move
         command = self.command_position_deg()
         distance = m.target_deg - m.start_deg
         done = 1.0 if distance == 0.0 else (command - m.start_deg) / distance
         return command + m.offset0_deg + (m.offset1_deg - m.offset0_deg) * done
 
+    def true_position_deg(self) -> float:
+        """Physical angle of the load: the encoder reading plus the zero error."""
+        return self.encoder_position_deg() + self.zero_offset_deg
+
     def state(self) -> AxisState:
         m = self._move
         elapsed = self.world.clock.now() - m.t0
         alarm = self._alarm(elapsed)
         settled = elapsed >= m.run_s() + m.settle_s
-        command, true = self.command_position_deg(), self.true_position_deg()
+        command, encoder = self.command_position_deg(), self.encoder_position_deg()
         return AxisState(busy=not settled and not alarm, in_position=settled and not alarm, alarm=alarm,
-                         homed=self._homed(elapsed, alarm), command_deg=command, true_deg=true,
-                         encoder_steps=round(true * self.steps_per_degree),
+                         homed=self._homed(elapsed, alarm), command_deg=command,
+                         true_deg=encoder + self.zero_offset_deg,
+                         encoder_steps=round(encoder * self.steps_per_degree),
                          command_steps=round(command * self.steps_per_degree))
 
     # -- commands -----------------------------------------------------------------------------
@@ -119,9 +130,9 @@ class AxisModel:
 
     def stop(self) -> None:
         self._fold()
-        command, true = self.command_position_deg(), self.true_position_deg()
+        command, encoder = self.command_position_deg(), self.encoder_position_deg()
         self._move = _Move(self.world.clock.now(), command, command, self._move.speed_deg_s,
-                           self._move.accel_deg_s2, true - command, true - command, self.cfg.settle_s)
+                           self._move.accel_deg_s2, encoder - command, encoder - command, self.cfg.settle_s)
 
     def reset_alarm(self) -> None:
         self._fold()
@@ -133,18 +144,21 @@ class AxisModel:
         self._pending_alarms.extend([code] * moves)
 
     # -- internals ----------------------------------------------------------------------------
+    def _draw_deg(self, sigma_deg: float) -> float:
+        """A normal error from the world's rng; σ = 0 draws nothing, as if the effect did not exist."""
+        return float(self.world.rng.normal(0.0, sigma_deg)) if sigma_deg else 0.0
+
     def _begin(self, target_deg: float, speed_deg_s: float, accel_deg_s2: float, *, homing: bool = False) -> None:
         self._fold()
-        command, true = self.command_position_deg(), self.true_position_deg()
+        command, encoder = self.command_position_deg(), self.encoder_position_deg()
         if homing:
             self._direction = 1.0
             self._was_homed = False
         elif target_deg != command:
             self._direction = math.copysign(1.0, target_deg - command)
-        sigma = self.world.config.simulation.positioning_sigma_deg
-        error = self.world.rng.normal(0.0, sigma) if sigma else 0.0
+        error = self._draw_deg(self.world.config.simulation.positioning_sigma_deg)
         self._move = _Move(self.world.clock.now(), command, target_deg, speed_deg_s, accel_deg_s2,
-                           true - command, -0.5 * self.backlash_deg * self._direction + error, self.cfg.settle_s,
+                           encoder - command, -0.5 * self.backlash_deg * self._direction + error, self.cfg.settle_s,
                            extra_s=self.home_search_s if homing else 0.0,
                            alarm=self._pending_alarms.pop(0) if self._pending_alarms else 0, homing=homing)
 

@@ -2,8 +2,8 @@
 
 Each pixel of the requested window looks along its pinhole ray (rig.optics);
 where the ray hits the front of the sample inside the collimated lamp beam the
-scene luminance is L = f_r(ωi, ωo) · E⊥ · cos θi · texture(x, y), with ωo the
-per-pixel direction from that point to the camera; everywhere else it is the
+scene luminance is L = f_r(ωi, ωo) · E⊥ · cos θi · texture(x, y) · glint(x, y, ωi, ωo),
+with ωo the per-pixel direction from that point to the camera; everywhere else it is the
 configured ambient (stray-light) luminance. The lamp housing's occlusion of the
 view and the camera's shadow are not modelled: the planner excludes those points.
 """
@@ -16,7 +16,7 @@ from drivers.interfaces import DeviceError, Frame, LuminanceCamera, Window
 from rig.geometry import LAMP_DIRECTION_GCS, sample_frame
 from rig.optics import CameraOptics, faces_lamp, in_beam, intersect_sample_plane, pixel_rays
 from simulators.sensor import SensorModel
-from simulators.texture import ValueNoiseTexture
+from simulators.texture import GlintTexture, ValueNoiseTexture
 from simulators.world import SimWorld
 
 
@@ -29,13 +29,14 @@ class SimCamera(LuminanceCamera):
         self.sensor = cfg.camera.sensor_info()
         self.optics = CameraOptics.from_config(cfg)
         self.texture = ValueNoiseTexture.from_config(cfg.simulation)
+        self.glint = GlintTexture.from_config(cfg.simulation)
         self.model = SensorModel.from_config(cfg.camera, cfg.simulation, world.rng)
 
     def identity(self) -> str:
         return "simulated LMK 98-4 (rig sim)"
 
     def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
-        """Noise-free scene luminance (cd/m², (height, width)) at the true motor angles."""
+        """Noise-free scene luminance (cd/m², (height, width)) at the true (physical) motor angles."""
         cfg = self.world.config
         alpha, beta, a, b = np.radians(self.world.motor_angles_deg())
         origin, rays = pixel_rays(self.optics, a, b, window)
@@ -50,7 +51,7 @@ class SimCamera(LuminanceCamera):
         wo = rays.reshape(-1, 3).compress(keep, axis=0) @ -frame   # back along the ray, SCS
         wi = LAMP_DIRECTION_GCS @ frame
         lum[lit] = (self.world.brdf(wi, wo) * (illuminance_normal_lx * wi[2])
-                    * self.texture(xy[:, 0], xy[:, 1]))
+                    * self.texture(xy[:, 0], xy[:, 1]) * self.glint(xy[:, 0], xy[:, 1], wi, wo))
         return lum
 
     def capture(self, exposure_s: float, window: Window | None = None) -> Frame:

@@ -13,9 +13,9 @@ from simulators.world import SimWorld
 CFG = AxisConfig(limits_deg=(-90, 90), speed_deg_s=10, accel_deg_s2=20, settle_s=0.2)
 
 
-def make(sigma=0.0, backlash=0.0):
-    world = SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=sigma)), get_model("lambert"),
-                     {"kd": 0.5})
+def make(sigma=0.0, backlash=0.0, zero_sigma=0.0, seed=1):
+    sim = SimulationConfig(seed=seed, positioning_sigma_deg=sigma, axis_zero_sigma_deg=zero_sigma)
+    world = SimWorld(RigConfig(simulation=sim), get_model("lambert"), {"kd": 0.5})
     return world, AxisModel(world, "stage_vertical", CFG, steps_per_degree=1000, backlash_deg=backlash)
 
 
@@ -78,6 +78,37 @@ def test_repeatability_spread_matches_positioning_sigma():
         landings.append(model.true_position_deg())
     assert np.std(landings) == pytest.approx(0.003, rel=0.15)
     assert np.mean(landings) == pytest.approx(10.0, abs=0.0006)
+
+
+def test_zero_errors_spread_with_axis_zero_sigma_across_runs():
+    offsets = np.array([make(zero_sigma=0.01, seed=seed)[1].zero_offset_deg for seed in range(400)])
+    assert offsets.std() == pytest.approx(0.01, rel=0.15)
+    assert abs(offsets.mean()) < 3 * 0.01 / np.sqrt(400)
+    world, first = make(zero_sigma=0.01)
+    others = [AxisModel(world, name, CFG, steps_per_degree=1000) for name in ("stage_normal", "arm_polar")]
+    assert len({first.zero_offset_deg, *(m.zero_offset_deg for m in others)}) == 3    # one draw per axis
+
+
+def test_zero_error_is_fixed_for_the_run_and_invisible_in_the_read_back():
+    world, model = make(sigma=0.003, backlash=0.002, zero_sigma=1.0)
+    offset = model.zero_offset_deg
+    assert abs(offset) > 0.1                                               # this seed's draw: plainly visible
+
+    def check(target):
+        state = model.state()
+        reading = state.encoder_steps / 1000
+        assert abs(reading - target) < 0.001 + 0.0006 + 5 * 0.003         # steps, backlash, repeatability
+        assert reading == pytest.approx(model.encoder_position_deg(), abs=0.0005)
+        assert world.axis_truth["stage_vertical"]() == pytest.approx(model.encoder_position_deg() + offset, abs=1e-12)
+        assert state.true_deg == pytest.approx(model.encoder_position_deg() + offset, abs=1e-12)
+
+    for target in (10.0, -20.0, 35.5, 35.5):
+        move(world, model, target)
+        check(target)
+    model.home()                                                           # the home sensor is off by the offset
+    world.clock.sleep(10.0)
+    assert model.state().homed
+    check(0.0)
 
 
 def test_target_beyond_soft_limits_raises_overtravel_alarm_and_moves_nothing():

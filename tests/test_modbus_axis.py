@@ -28,7 +28,7 @@ LASH = 0.001            # half the simulator's default backlash: the load lags t
 
 def make_world() -> SimWorld:
     """Repeatability noise off, so read-backs are exact (backlash stays)."""
-    return SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0)), get_model("lambert"),
+    return SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0, axis_zero_sigma_deg=0.0)), get_model("lambert"),
                     {"kd": 0.5})
 
 

@@ -7,15 +7,16 @@ import pytest
 
 from drivers.interfaces import DeviceError, Window
 from rig.brdf_models import get_model
-from rig.geometry import AXIS_NAMES, directions_scs, inverse_deg
+from rig.geometry import AXIS_NAMES, directions_scs, forward_deg, inverse_deg
 from rig.rigconfig import CameraConfig, RigConfig, SimulationConfig
+from simulators.axis_model import AxisModel
 from simulators.camera import SimCamera
 from simulators.sensor import SensorModel, digitise, electrons
-from simulators.texture import ValueNoiseTexture
+from simulators.texture import GlintTexture, ValueNoiseTexture
 from simulators.world import SimWorld
 
 #: Settings that remove every random or drifting effect except shot noise.
-QUIET = dict(texture_contrast=0.0, prnu_rel=0.0, dsnu_e_s=0.0, dark_current_e_s=0.0,
+QUIET = dict(texture_contrast=0.0, glint_contrast=0.0, prnu_rel=0.0, dsnu_e_s=0.0, dark_current_e_s=0.0,
              warmup_amplitude=0.0, drift_per_hour=0.0)
 PX_ON_SAMPLE = 6.45e-6 * 1.54 / 0.05          # one pixel on a fronto-parallel sample (m)
 ROI = Window.centred(1390, 1040, 100, 100)
@@ -32,8 +33,11 @@ def make_camera(model="lambert", params=None, angles=(30, 0, 20, 90), camera=Non
 
 
 def pose(world, *angles_deg):
-    motors = inverse_deg(*angles_deg).as_array()
-    for name, value in zip(AXIS_NAMES, motors):
+    set_motors(world, inverse_deg(*angles_deg).as_array())
+
+
+def set_motors(world, motors_deg):
+    for name, value in zip(AXIS_NAMES, motors_deg):
         world.axis_truth[name] = lambda value=float(value): value
 
 
@@ -102,6 +106,25 @@ def test_windowed_render_equals_the_full_frame_pixels():
     assert 0 < (part > 0).mean() < 1                                   # straddles the spot edge
 
 
+def test_camera_renders_the_physical_angles_not_the_read_back():
+    """The axes meet at the sample centre, so zero errors barely move the image: they show as angle errors."""
+    cam = make_camera(**QUIET)                                         # default zero errors: σ = 0.01°
+    world = cam.world
+    axes = [AxisModel(world, name, getattr(world.config.axes, name), steps_per_degree=1000) for name in AXIS_NAMES]
+    for axis, target in zip(axes, inverse_deg(60, 0, 20, 90).as_array()):
+        axis.start_move(float(target), 20.0, 40.0)
+    world.clock.sleep(30.0)
+    physical = [axis.encoder_position_deg() + axis.zero_offset_deg for axis in axes]
+    read_back = [axis.state().encoder_steps / 1000 for axis in axes]
+    assert world.motor_angles_deg() == pytest.approx(physical, abs=1e-12)
+
+    def lambertian_luminance(motors):
+        return 0.5 / np.pi * 1000.0 * np.cos(np.radians(forward_deg(*motors).theta_i_deg))
+
+    np.testing.assert_allclose(cam.luminance(ROI, 1000.0), lambertian_luminance(physical), rtol=1e-9)
+    assert abs(lambertian_luminance(read_back) / lambertian_luminance(physical) - 1) > 1e-4
+
+
 def test_illuminance_is_taken_at_mid_exposure():
     cam = make_camera(camera=CameraConfig(read_noise_e=0.0), **{
         **QUIET, "illuminance_normal_lx": 10.0, "warmup_amplitude": -0.2, "warmup_tau_s": 20.0})
@@ -115,7 +138,7 @@ def test_illuminance_is_taken_at_mid_exposure():
 # --- sensor ------------------------------------------------------------------------------
 
 def test_photon_transfer_follows_emva_1288():
-    cam = make_camera(angles=(0, 0, 10, 90), texture_contrast=0.0, warmup_amplitude=0.0,
+    cam = make_camera(angles=(0, 0, 10, 90), texture_contrast=0.0, glint_contrast=0.0, warmup_amplitude=0.0,
                       drift_per_hour=0.0)
     flat = Window.centred(1390, 1040, 200, 200)
     k, t = cam.sensor.gain_dn_per_e, 0.05
@@ -221,10 +244,12 @@ def test_bad_requests_raise_device_errors():
 
 def test_captures_are_fast():
     cam = make_camera()
-    cam.capture(0.01, ROI)
-    best = min(_timed(lambda: cam.capture(0.01, ROI)) for _ in range(20))
+    roi = Window.centred(1390, 1040, 70, 70)                           # the campaigns' ROI
+    best = min(_timed(lambda: cam.capture(0.01, roi)) for _ in range(20))
     assert best < 2e-3
     assert min(_timed(lambda: cam.capture(0.01)) for _ in range(2)) < 0.5
+    cam.glint = lambda *args: 1.0
+    assert best - min(_timed(lambda: cam.capture(0.01, roi)) for _ in range(20)) < 1e-3   # the glints' share
 
 
 def _timed(fn) -> float:
@@ -256,9 +281,58 @@ def test_texture_lattice_values_are_lognormal_with_mean_one():
     np.testing.assert_allclose(texture(ix[:3, :3] * 1e-3, iy[:3, :3] * 1e-3), nodes[:3, :3], rtol=1e-12)
 
 
-def test_texture_expectation_is_one_at_any_point():
-    values = [ValueNoiseTexture(0.2, 1e-3, seed)(0.00031, -0.00077) for seed in range(4000)]
-    assert np.mean(values) == pytest.approx(1.0, abs=3 * 0.2 / np.sqrt(4000))
+def test_texture_expectation_is_one_at_any_point_and_direction():
+    wi, wo = directions_scs(*np.radians([35.0, 0.0, 20.0, 170.0]))
+    static, glint = np.array([(ValueNoiseTexture(0.2, 1e-3, seed)(0.00031, -0.00077),
+                               GlintTexture(0.2, 5e-4, np.radians(2), seed)(0.00031, -0.00077, wi, wo))
+                              for seed in range(4000)]).T
+    bound = 3 * 0.2 / np.sqrt(4000)
+    assert static.mean() == pytest.approx(1.0, abs=bound)
+    assert glint.mean() == pytest.approx(1.0, abs=bound)
+    assert abs(np.corrcoef(static, glint)[0, 1]) < 4 / np.sqrt(4000)        # independent factors ...
+    assert (static * glint).mean() == pytest.approx(1.0, abs=1.5 * bound)   # ... so the product's mean is 1
+
+
+def test_static_texture_is_the_one_of_the_glint_free_simulator():
+    """Values pinned before the glints were added: seeded samples keep their static texture."""
+    for (seed, contrast, x, y), value in {(1, 0.1, 0.00031, -0.00077): 0.9733963601803981,
+                                          (3, 0.3, -0.0123, 0.0456): 0.8014785460459579,
+                                          (7, 0.03, 0.25, -0.125): 1.040457638481475}.items():
+        assert ValueNoiseTexture(contrast, 1e-3, seed)(x, y) == pytest.approx(value, rel=1e-14)
+
+
+def test_glint_has_unit_mean_and_the_expected_std_over_positions_and_directions():
+    rng = np.random.default_rng(2)
+    x, y = rng.uniform(-1.0, 1.0, (2, 100_000))
+    wi, wo = (v * np.sign(v[:, 2:]) / np.linalg.norm(v, axis=1, keepdims=True)    # upper hemisphere
+              for v in rng.normal(size=(2, 100_000, 3)))
+    values = GlintTexture(contrast=0.1, grain_m=5e-4, angle_rad=np.radians(2), seed=9)(x, y, wi, wo)
+    assert values.mean() == pytest.approx(1.0, abs=1e-3)
+    assert values.std() == pytest.approx(0.1 * (26 / 35) ** 2, rel=0.03)   # smoothstep blend over 4 axes
+    np.testing.assert_array_equal(GlintTexture(0.0, 5e-4, np.radians(2), 9)(x[:50], y[:50], wi[:50], wo[:50]), 1.0)
+
+
+def test_glint_roi_means_decorrelate_with_half_vector_separation():
+    """ROI means of two views: ≈ the same draw below 0.2 pitch, independent beyond 2√2 pitches."""
+    angle = np.radians(2)
+    glint = GlintTexture(contrast=0.1, grain_m=5e-4, angle_rad=angle, seed=5)
+    rng = np.random.default_rng(0)
+    n = 500
+    pixels = np.arange(10) * 2e-4
+    x = (np.arange(n) * 0.05)[:, None, None] + pixels[None, :, None]   # ROIs 5 cm apart: independent
+    y = pixels[None, None, :]
+    h1 = rng.uniform(-0.3, 0.3, (n, 2))                                # random phases on the lattice
+    psi = rng.uniform(0, 2 * np.pi, n)
+
+    def roi_means(hxy):
+        h = np.column_stack([hxy, np.sqrt(1 - (hxy ** 2).sum(axis=1))])[:, None, None, :]
+        return glint(x, y, h, h).mean(axis=(1, 2))                      # ωi = ωo = h: retroreflection
+
+    first = roi_means(h1)
+    correlation = {sep: np.corrcoef(first, roi_means(h1 + sep * angle * np.column_stack(
+        [np.cos(psi), np.sin(psi)])))[0, 1] for sep in (0.1, 0.2, 3.0, 5.0)}
+    assert correlation[0.1] > 0.95 and correlation[0.2] > 0.9
+    assert abs(correlation[3.0]) < 0.2 and abs(correlation[5.0]) < 0.2
 
 
 def test_texture_is_seeded_continuous_and_path_independent():
