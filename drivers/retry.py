@@ -32,7 +32,8 @@ def call_with_retry(action: Callable[[], T], *, device: str, what: str, clock: C
         except DeviceError as exc:
             if not exc.transient or attempt == policy.attempts:
                 if exc.transient:
-                    raise DeviceError(device, f"{what} failed {policy.attempts} times; last: {exc}") from exc
+                    raise DeviceError(device, f"{what} failed {policy.attempts} times; last: {exc}",
+                                      unanswered=True) from exc
                 raise
             on_retry("retry", device=device, what=what, attempt=attempt, error=str(exc))
             clock.sleep(wait)

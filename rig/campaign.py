@@ -149,6 +149,17 @@ class Lamp(_Strict):
     warmup_stable_rel: float = Field(0.002, gt=0)
 
 
+class Suspenders(_Strict):
+    """Conditions that pause the run until they clear, checked every check_interval_s of rig
+    time; after max_wait_s the run stops cleanly. Affected points are measured again."""
+
+    lamp_current_tolerance_rel: float = Field(0.02, gt=0)
+    lamp_voltage_tolerance_rel: float = Field(0.05, gt=0)
+    illuminance_drift_limit_rel: float = Field(0.02, gt=0)
+    check_interval_s: float = Field(30.0, gt=0)
+    max_wait_s: float = Field(1800.0, ge=0)
+
+
 class Limits(_Strict):
     max_view_theta_deg: float = Field(85.0, gt=0, le=90)
     grazing_limit_deg: float = Field(88.0, gt=0, le=90)
@@ -165,6 +176,7 @@ class Campaign(_Strict):
     illuminance: Illuminance = Illuminance()
     lamp: Lamp = Lamp()
     limits: Limits = Limits()
+    suspenders: Suspenders = Suspenders()
 
 
 _UNION_TAGS = {"pattern": CentredPattern, "explicit": ExplicitViews}

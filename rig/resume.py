@@ -39,13 +39,16 @@ def _rows(folder: Path) -> list[dict]:
 
 
 def _pending_rows(folder: Path) -> dict[str, dict]:
-    """Rows written ahead in events.jsonl, by point id (the last one of each wins)."""
+    """Rows written ahead in events.jsonl and not discarded later, by point id (the last one wins)."""
     pending: dict[str, dict] = {}
     with open(folder / "events.jsonl", encoding="utf-8") as fh:
         for line in fh:
             event = json.loads(line)
             if event.get("event") == "point_pending":
                 pending[event["row"]["point_id"]] = event["row"]
+            elif event.get("event") == "points_discarded":
+                for pid in event["point_ids"]:
+                    pending.pop(pid, None)
     return pending
 
 

@@ -14,8 +14,9 @@ dies) and appended to brdf.csv once the next reading brackets it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, replace
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -42,6 +43,7 @@ class Progress:
 
 
 ProgressCallback = Callable[[Progress], None]
+T = TypeVar("T")
 
 
 class StopRequested(Exception):
@@ -106,6 +108,7 @@ class Runner:
         self.pending: list[Measurement] = []       # waiting for the next E⊥ reading
         self.reading: IlluminanceEstimate | None = None
         self._points_since_reading = 0
+        self.lamp_ref_v: float | None = None       # lamp voltage when warm: the voltage suspender's reference
         devices.route_events(self._device_event)
         self.position = tuple(self._read_back())
 
@@ -158,40 +161,125 @@ class Runner:
             now = self.dev.meter.read().illuminance_lx
             change = abs(now - previous) / max(abs(now), 1e-300)
             elapsed = self.rig_time() - start
-            if change < cfg.warmup_stable_rel:
-                self.writer.event("warmup_stable", illuminance_lx=now, change_rel=change,
-                                  warmup_s=elapsed, rig_time_s=self.rig_time())
-                return
-            if elapsed >= cfg.warmup_max_s:
-                self.writer.event("warmup_not_stable", illuminance_lx=now, change_rel=change,
-                                  warmup_s=elapsed, rig_time_s=self.rig_time())
-                return
+            if change < cfg.warmup_stable_rel or elapsed >= cfg.warmup_max_s:
+                break
             previous = now
+        self.lamp_ref_v = lamp.measure_voltage_v()
+        self.writer.event("warmup_stable" if change < cfg.warmup_stable_rel else "warmup_not_stable",
+                          illuminance_lx=now, change_rel=change, warmup_s=elapsed, lamp_voltage_v=self.lamp_ref_v,
+                          rig_time_s=self.rig_time())
 
-    def _check_lamp(self) -> None:
-        """A burnt-out filament or an open lead shows as output current far below the setpoint."""
+    def _lamp_problem(self) -> str | None:
+        """Lamp current or voltage outside tolerance (a burn-out shows as no current), else None."""
+        sus = self.campaign.suspenders
         current = self.dev.lamp.measure_current_a()
         wanted = self.rig.lamp.current_a
-        if current < self.LAMP_CURRENT_MIN_FRACTION * wanted:
-            voltage = self.dev.lamp.measure_voltage_v()
-            raise DeviceError("lamp", f"output current {current:.3f} A at {voltage:.2f} V with {wanted:.3f} A set: "
-                                      "lamp burnt out or circuit open")
+        if abs(current - wanted) > sus.lamp_current_tolerance_rel * wanted:
+            return (f"lamp current {current:.3f} A at {self.dev.lamp.measure_voltage_v():.2f} V with {wanted:.3f} A "
+                    "set" + (": lamp burnt out or circuit open" if current < 0.5 * wanted else ""))
+        voltage = self.dev.lamp.measure_voltage_v()
+        if self.lamp_ref_v and abs(voltage - self.lamp_ref_v) > sus.lamp_voltage_tolerance_rel * self.lamp_ref_v:
+            return f"lamp voltage {voltage:.3f} V, {self.lamp_ref_v:.3f} V after warm-up"
+        return None
 
-    def _new_reading(self, series: int) -> None:
-        """Measure E⊥; drift-correct and write the points measured since the previous reading."""
-        readings = [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
+    def _probe(self, device: str) -> Callable[[], str | None]:
+        """A harmless exchange with `device`: None when it answers again."""
+        actions = {"lamp": self.dev.lamp.measure_current_a, "meter": self.dev.meter.read,
+                   "camera": self.dev.camera.identity,
+                   **{ax.name: ax.position_deg for ax in (*self.dev.stage.axes, *self.dev.arm.axes)}}
+        action = actions.get(device, self._read_back)
+
+        def probe() -> str | None:
+            try:
+                action()
+                return None
+            except DeviceError as exc:
+                return str(exc)
+        return probe
+
+    def _suspend(self, device: str, reason: str, problem: Callable[[], str | None], *, rewarm: bool = False) -> None:
+        """Pause until `problem()` clears (checked every check_interval_s), or stop after max_wait_s.
+
+        Points waiting for E⊥ keep the last good reading; the caller re-takes the affected points.
+        """
+        sus = self.campaign.suspenders
+        if self.pending:
+            self._write_pending(self.reading, None)
+        self.writer.event("suspended", device=device, reason=reason, rig_time_s=self.rig_time())
+        self._report(f"PAUSED ({device}): {reason}")
+        waited = 0.0
+        while (still := problem()) is not None:
+            if waited >= sus.max_wait_s:
+                self.writer.event("suspend_timeout", device=device, reason=still, waited_s=waited,
+                                  rig_time_s=self.rig_time())
+                raise DeviceError(device, f"paused {waited:.0f} s and still: {still}")
+            self.dev.clock.sleep(sus.check_interval_s)
+            waited += sus.check_interval_s
+            self._report(f"PAUSED ({device}) {waited:.0f} s: {still}")
+        self.writer.event("resumed", device=device, waited_s=waited, rig_time_s=self.rig_time())
+        self._report(f"resumed after {waited:.0f} s ({device})")
+        if rewarm:
+            self._warm_up()
+        self.reading = None            # the next E⊥ reading starts afresh: nothing to interpolate across a pause
+
+    def _answering(self, action: Callable[[], T]) -> T:
+        """Run a device exchange; while a device stops answering, pause for it, then try again."""
+        while True:
+            try:
+                return action()
+            except DeviceError as exc:
+                if not exc.unanswered:
+                    raise
+                self._suspend(exc.device, str(exc), self._probe(exc.device))
+
+    def _read_illuminance(self) -> IlluminanceEstimate:
+        readings = self._answering(lambda: [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)])
         values = np.array([r.illuminance_lx for r in readings])
         if not values.mean() > 0:
             raise DeviceError("meter", f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
                                        " no light on the detector")
         est = estimate(values, self.rig_time(), self.rig.meter.repeatability_rel, self.rig.meter.calibration_u_rel)
-        self.writer.event("illuminance", series=series, illuminance_normal_lx=est.value_lx, u_lx=est.u_lx,
+        self.writer.event("illuminance", illuminance_normal_lx=est.value_lx, u_lx=est.u_lx,
                           readings=est.n, photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
                           calibration_lx_per_a=readings[0].calibration_lx_per_a, rig_time_s=est.rig_time_s)
-        if self.pending:
-            self._write_pending(self.reading, est)
+        return est
+
+    def _new_reading(self) -> list[PlannedPoint]:
+        """Measure E⊥ and drift-correct the points since the previous reading; returns points to re-take.
+
+        A change beyond `suspenders.illuminance_drift_limit_rel` since the previous reading
+        is not drift to interpolate but an event: those points are discarded, the run pauses
+        until the lamp is steady again, and they are measured again.
+        """
+        est = self._read_illuminance()
+        before = self.reading
+        limit = self.campaign.suspenders.illuminance_drift_limit_rel
+        if before is not None and abs(est.value_lx - before.value_lx) > limit * before.value_lx:
+            retake = [m.point for m in self.pending]
+            self.pending.clear()
+            self.measured -= len(retake)
+            self.writer.event("points_discarded", point_ids=[p.point_id for p in retake],
+                              reason="illuminance jump", rig_time_s=self.rig_time())
+            reason = f"E⊥ {est.value_lx:.1f} lx, {before.value_lx:.1f} lx at the previous reading"
+            self._suspend("illuminance", reason, self._illuminance_unsteady)
+            est = self._read_illuminance()
+        else:
+            retake = []
+            if self.pending:
+                self._write_pending(before, est)
         self.reading = est
         self._points_since_reading = 0
+        return retake
+
+    def _illuminance_unsteady(self) -> str | None:
+        """Two meter readings a check interval apart differ by more than the warm-up criterion."""
+        first = self.dev.meter.read().illuminance_lx
+        self.dev.clock.sleep(self.campaign.lamp.warmup_check_s)
+        second = self.dev.meter.read().illuminance_lx
+        change = abs(second - first) / max(abs(second), 1e-300)
+        if change >= self.campaign.lamp.warmup_stable_rel or not second > 0:
+            return f"E⊥ still changing: {first:.1f} → {second:.1f} lx"
+        return None
 
     def _write_pending(self, before: IlluminanceEstimate, after: IlluminanceEstimate | None) -> None:
         """Append the pending points with E⊥ interpolated between `before` and `after` (or `before` alone)."""
@@ -211,7 +299,6 @@ class Runner:
 
     def _measure_point(self, point: PlannedPoint) -> Measurement:
         self._move(point.motors_deg)
-        self._check_lamp()
         motors = tuple(self._read_back())
         angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
         time_utc, rig_time = utc_now(), self.rig_time()
@@ -263,10 +350,24 @@ class Runner:
             "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s, **budget,
         }
 
-    def _measure_with_retry(self, point: PlannedPoint) -> None:
+    def _measure_guarded(self, point: PlannedPoint) -> list[PlannedPoint]:
+        """Measure one point under the suspenders; returns the points to (re-)take before going on."""
+        problem = self._answering(self._lamp_problem)
+        if problem is not None:
+            retake = [self.pending.pop().point] if self.pending else []     # lit while the lamp failed?
+            if retake:
+                self.measured -= 1
+                self.writer.event("points_discarded", point_ids=[retake[0].point_id], reason="lamp",
+                                  rig_time_s=self.rig_time())
+            self._suspend("lamp", problem, self._lamp_problem, rewarm=True)
+            return retake + [point]
         try:
             m = self._measure_point(point)
         except DeviceError as exc:
+            if exc.unanswered:
+                self._suspend(exc.device, str(exc), self._probe(exc.device))
+                self.position = tuple(self._read_back())
+                return [point]
             if not exc.transient:
                 raise
             self.writer.event("retry", point_id=point.point_id, device=exc.device, error=str(exc),
@@ -282,6 +383,7 @@ class Runner:
             self.writer.event("point_pending", row=self._row(m, self.reading.value_lx, self.reading.u_lx, 0.0))
         else:
             self._append(self._row(m, self.reading.value_lx, self.reading.u_lx, 0.0))
+        return []
 
     # -- the run -----------------------------------------------------------------------------
     def request_stop(self, reason: str) -> None:
@@ -296,27 +398,31 @@ class Runner:
         self.writer.event("parked", position_deg=list(self.PARK_DEG), rig_time_s=self.rig_time())
 
     def _measure_all(self) -> None:
+        """Points in plan order, each series contiguous; re-takes go to the front of the queue."""
         series_of = {s.index: s for s in self.plan.series}
-        first = True
-        last_series = self.plan.series[0].index if self.plan.series else 0
-        for series in self.plan.series:
-            points = [p for p in self.plan.points if p.series == series.index and p.point_id not in self.done_ids]
-            if not points:
+        queue = deque(p for p in self.plan.points if p.point_id not in self.done_ids)
+        previous_series = None
+        while queue:
+            point = queue[0]
+            new_series = point.series != previous_series
+            if new_series:
+                self._move(point.motors_deg)      # the stage first, then E⊥ at the series' position
+            seconds_since = self.rig_time() - self.reading.rig_time_s if self.reading else 0.0
+            if self.reading is None or self.schedule.due(new_series, self._points_since_reading, seconds_since):
+                queue.extendleft(reversed(self._new_reading()))
+                point = queue[0]
+            previous_series = point.series
+            queue.popleft()
+            retake = self._measure_guarded(point)
+            if retake:
+                queue.extendleft(reversed(retake))
                 continue
-            self._move(points[0].motors_deg)
-            for k, point in enumerate(points):
-                seconds_since = self.rig_time() - self.reading.rig_time_s if self.reading else 0.0
-                if first or self.schedule.due(k == 0, self._points_since_reading, seconds_since):
-                    self._new_reading(series.index)
-                    first = False
-                self._measure_with_retry(point)
-                s = series_of[point.series]
-                self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
-                last_series = series.index
-                if self.stop_requested:
-                    raise StopRequested
-        if self.reading is not None:
-            self._new_reading(last_series)        # closing reading: brackets the last points
+            s = series_of[point.series]
+            self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
+            if self.stop_requested:
+                raise StopRequested
+            if not queue and self.reading is not None:
+                queue.extend(self._new_reading())   # closing reading; re-takes if the lamp jumped
 
     def run(self) -> str:
         status, error = "failed", None
@@ -328,7 +434,8 @@ class Runner:
         except StopRequested:
             status = "interrupted"
             self.writer.event("interrupted", graceful=True, rig_time_s=self.rig_time(), measured=self.measured)
-            self._new_reading(self.plan.series[-1].index)     # brackets the points measured since the last one
+            if self.reading is not None:
+                self._new_reading()          # brackets the points since the last reading (a jump: kept unbracketed)
             self._park()
         except KeyboardInterrupt:
             status = "interrupted"

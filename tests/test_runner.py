@@ -107,11 +107,13 @@ def assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, message):
     assert manifest["status"] == "failed" and message in manifest["error"]
     assert manifest["counts"]["measured"] == len(kept)
     assert not lamp_on and not moving
-    ev = [e["event"] for e in events(tmp_path / "ds")]
-    # points measured since the last E⊥ reading are kept, with that reading, before the rig is made safe
-    tail = ["failed", "pending_without_closing_reading", "safe_state"] if "drift_corrected" not in kept[-1]["flags"] \
-        else ["failed", "safe_state"]
-    assert ev[-len(tail):] == tail and events(tmp_path / "ds")[-1]["lamp_off"]
+    ev = events(tmp_path / "ds")
+    kinds = [e["event"] for e in ev]
+    assert kinds[-1] == "safe_state" and ev[-1]["lamp_off"] and "failed" in kinds[-3:]
+    # every point written ahead is in brdf.csv unless it was discarded for a re-take
+    pending = {e["row"]["point_id"] for e in ev if e["event"] == "point_pending"}
+    discarded = {pid for e in ev if e["event"] == "points_discarded" for pid in e["point_ids"]}
+    assert pending - discarded == {r["point_id"] for r in kept}
 
 
 def test_complete_run_switches_lamp_off(tmp_path):
@@ -161,12 +163,63 @@ def test_transient_protocol_faults_cost_a_retry_event(tmp_path, peer, fault):
     assert retries[0]["device"] in (peer, "arm_azimuth", "arm_polar", "stage_vertical", "stage_normal")
 
 
-def test_lamp_burnout_stops_cleanly_naming_the_lamp(tmp_path):
+def test_lamp_burnout_pauses_then_stops_cleanly_naming_the_lamp(tmp_path):
+    campaign = small_campaign(suspenders={"max_wait_s": 600})
     status, error, runner, plan, lamp_on, moving = run(
-        tmp_path, small_campaign(), inject=at_point(6, lambda peers: peers["lamp"].inject("burnout")))
-    assert status == "raised" and str(error).startswith("lamp: output current 0.000 A")
-    assert runner.measured == 6          # nothing measured in the dark after the burn-out
-    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "lamp burnt out")
+        tmp_path, campaign, inject=at_point(6, lambda peers: peers["lamp"].inject("burnout")))
+    assert status == "raised" and str(error).startswith("lamp: paused 600 s and still: lamp current 0.000 A")
+    assert "burnt out" in str(error)
+    assert runner.measured == 5          # the point before the check may have been dark: discarded
+    assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "burnt out")
+    kinds = [e["event"] for e in events(tmp_path / "ds")]
+    assert kinds.index("suspended") < kinds.index("suspend_timeout") < kinds.index("failed")
+
+
+def suspenders_run(tmp_path, inject, campaign=None):
+    """A run with a fault injected after point 6 and the given action when the run pauses."""
+    campaign = campaign or small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])
+    status, error, runner, plan, lamp_on, moving = run(tmp_path, campaign, inject=inject)
+    assert status == "complete", error
+    got = [r["point_id"] for r in rows(tmp_path / "ds")]
+    assert sorted(got) == sorted(p.point_id for p in plan.points)        # each point once
+    assert not lamp_on and not moving
+    return [e for e in events(tmp_path / "ds")]
+
+
+def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path):
+    state = {}
+
+    def inject(peers, done):
+        if done == 6 and "burnt" not in state:
+            state["burnt"] = peers["lamp"].world.clock.now()
+            peers["lamp"].inject("burnout")
+        elif "burnt" in state and "new" not in state and peers["lamp"].world.clock.now() > state["burnt"] + 200:
+            state["new"] = True
+            peers["lamp"].world.lamp.replace()          # the operator fits a new lamp
+    ev = suspenders_run(tmp_path, inject)
+    kinds = [e["event"] for e in ev]
+    assert "suspended" in kinds and "resumed" in kinds and kinds.count("warmup_stable") == 2
+    discarded = next(e for e in ev if e["event"] == "points_discarded")
+    assert discarded["reason"] == "lamp" and len(discarded["point_ids"]) == 1
+    assert next(e for e in ev if e["event"] == "resumed")["waited_s"] >= 200
+
+
+def test_illuminance_jump_discards_and_retakes_the_points_since_the_last_reading(tmp_path):
+    def step(peers):       # 1 % less current: within the current tolerance, 3.4 % less light
+        lamp = peers["lamp"].world.lamp
+        lamp.set_current(0.99 * lamp.current_setpoint_a(), 0.0)
+    ev = suspenders_run(tmp_path, at_point(6, step))
+    discarded = next(e for e in ev if e["event"] == "points_discarded")
+    assert discarded["reason"] == "illuminance jump" and len(discarded["point_ids"]) >= 1
+    assert next(e for e in ev if e["event"] == "suspended")["device"] == "illuminance"
+
+
+@pytest.mark.parametrize("peer", ["meter", "arm"])
+def test_device_that_stops_answering_pauses_until_it_answers(tmp_path, peer):
+    ev = suspenders_run(tmp_path, at_point(6, lambda peers: peers[peer].inject("no_reply", count=6)))
+    suspended = next(e for e in ev if e["event"] == "suspended")
+    assert suspended["device"] in (peer, "arm_azimuth", "arm_polar") and "failed 3 times" in suspended["reason"]
+    assert any(e["event"] == "resumed" for e in ev)
 
 
 def test_lamp_error_queue_entry_is_reported_and_lamp_still_switched_off(tmp_path):
