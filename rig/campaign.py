@@ -177,6 +177,9 @@ class Campaign(_Strict):
     lamp: Lamp = Lamp()
     limits: Limits = Limits()
     suspenders: Suspenders = Suspenders()
+    #: `optimised`: series and views ordered for the least rig time (travel-time heuristic);
+    #: `table`: the order of the file. Point ids are the same either way.
+    ordering: Literal["optimised", "table"] = "optimised"
 
 
 _UNION_TAGS = {"pattern": CentredPattern, "explicit": ExplicitViews}

@@ -12,7 +12,7 @@ from rig.campaign import Campaign, load_campaign
 from rig.dataset import DatasetError
 from rig.execute import execute
 from rig.resume import prepare_resume
-from rig.plan import SKIP_REASONS, Plan, build_plan, estimate_rig_time_s
+from rig.plan import Plan, build_plan, describe_reason, estimate_rig_time_s, rig_time_comparison
 from rig.progress import ProgressBar, format_duration
 from rig.configfile import ConfigFileError
 from rig.connect import open_rig
@@ -34,7 +34,7 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     print(f"  to measure: {len(plan.points)}")
     print(f"  skipped:    {len(plan.skipped)}")
     for reason, n in sorted(plan.skipped_by_reason().items(), key=lambda kv: -kv[1]):
-        print(f"    {n:6d}  {reason}: {SKIP_REASONS[reason]}")
+        print(f"    {n:6d}  {reason}: {describe_reason(reason)}")
     print("  per series (θi, φi): measured / planned")
     for s in plan.series:
         n_meas = sum(p.series == s.index for p in plan.points)
@@ -42,9 +42,12 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
         print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {n_meas:4d} / {n_all}")
     moves = estimate_rig_time_s(plan, rig, NOMINAL_CAPTURE_S)
     warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
-    print(f"  estimated rig time: {format_duration(moves + warm)} "
+    print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
           f"(moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point + ≥ {warm:.0f} s lamp warm-up; "
           "exposures depend on the sample)")
+    table_s, optimised_s = rig_time_comparison(campaign, rig, NOMINAL_CAPTURE_S)
+    print(f"  moves + capture: table order {format_duration(table_s)}, optimised order "
+          f"{format_duration(optimised_s)} ({optimised_s / table_s:.2f} × table)")
 
 
 def _rig_config(args) -> RigConfig:

@@ -2,20 +2,27 @@
 
 A plan is data. Every planned direction gets a stable `point_id`
 (`<series>-<view>`, from the campaign alone) whether it is measured or
-skipped, so ids survive a resume and skipped points can be reported.
+skipped, so ids survive a resume and skipped points can be reported. The
+order is the campaign's (`table`) or a travel-time optimised one
+(`optimised`, rig.ordering); both are deterministic, so a resume that rebuilds
+the plan gets the same order. Moves through the rig's forbidden zones
+(rig.collisions) are checked in the final order.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
 from rig import geometry as geo
 from rig.campaign import Campaign, CentredPattern
-from rig.motion import move_time_s as trapezoid_time_s
+from rig.collisions import ForbiddenZone, path_crosses, zone_at, zones_of
 from rig.optics import CameraOptics, roi_inside_spot
+from rig.ordering import START_DEG, arm_branches, order_plan, path_time_s, travel_time_s
 from rig.rigconfig import RigConfig
 
 #: Directions closer than this (radians) are the same planned direction.
@@ -27,7 +34,16 @@ SKIP_REASONS = {
     "occluded_by_lamp": "camera would look into the lamp housing (too close to retroreflection)",
     "axis_limits": "no axis solution inside the configured limits",
     "roi_unlit": "the ROI would not lie entirely inside the lit spot",
+    "forbidden_zone": "the axes would stand inside a forbidden zone of the rig (on every arm branch)",
+    "collision": "the move to it from the previous point kept would cross a forbidden zone of the rig",
 }
+Ordering = Literal["optimised", "table"]
+
+
+def describe_reason(reason: str) -> str:
+    """Text of a skip reason; `forbidden_zone:<zone>` and `collision:<zone>` name the zone."""
+    kind, _, zone = reason.partition(":")
+    return SKIP_REASONS[kind] + (f": {zone}" if zone else "")
 
 
 @dataclass(frozen=True)
@@ -110,13 +126,21 @@ def viewing_directions(campaign: Campaign, theta_i_deg: float, phi_i_deg: float)
     return dirs[keep]
 
 
-def build_plan(campaign: Campaign, rig: RigConfig) -> Plan:
-    """Plan every (incidence, view) pair; leave out, with a reason, what cannot be measured."""
+def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = None) -> Plan:
+    """Plan every (incidence, view) pair; leave out, with a reason, what cannot be measured.
+
+    `ordering`: `table` (campaign order) or `optimised` (least rig time);
+    default the campaign's `ordering`, else optimised.
+    """
+    ordering = ordering or getattr(campaign, "ordering", "optimised")
+    if ordering not in ("optimised", "table"):
+        raise ValueError(f"ordering must be 'optimised' or 'table', got {ordering!r}")
     limits = rig.axes.limits()
+    zones = zones_of(rig)
     optics = CameraOptics.from_config(rig)
     occlusion_rad = np.arctan2(rig.geometry.lamp_housing_radius_m, rig.geometry.lamp_distance_m)
     max_view_rad = np.radians(campaign.limits.max_view_theta_deg)
-    current = (0.0, 0.0, 0.0, 0.0)
+    current = START_DEG
     series_list = incidence_series(campaign)
     points: list[PlannedPoint] = []
     skipped: list[SkippedPoint] = []
@@ -127,15 +151,18 @@ def build_plan(campaign: Campaign, rig: RigConfig) -> Plan:
         theta_o_deg, phi_o_deg = np.degrees(theta_o), np.degrees(phi_o)
         motors = geo.inverse_deg(series.theta_i_deg, series.phi_i_deg, theta_o_deg, phi_o_deg,
                                  limits, current).as_array()
+        motors, zone = _outside_zones(motors, limits, zones)
         reason = np.full(len(wo), "", dtype=object)
 
-        def mark(mask: np.ndarray, why: str) -> None:
-            reason[(reason == "") & mask] = why
+        def mark(mask: np.ndarray, why: str | np.ndarray) -> None:
+            free = (reason == "") & mask
+            reason[free] = np.broadcast_to(np.asarray(why, dtype=object), reason.shape)[free]
 
         mark(wo[:, 2] <= 1e-12, "below_horizon")
         mark(theta_o > max_view_rad + 1e-12, "beyond_max_view_theta")
         mark(geo.angle_between(wo, wi[None, :]) < occlusion_rad, "occluded_by_lamp")
         mark(~np.all(np.isfinite(motors), axis=1), "axis_limits")
+        mark(zone != "", "forbidden_zone:" + zone)
         if campaign.limits.skip_roi_unlit:
             ok = np.all(np.isfinite(motors), axis=1)
             lit = np.zeros(len(wo), bool)
@@ -155,24 +182,73 @@ def build_plan(campaign: Campaign, rig: RigConfig) -> Plan:
         measured = [p for p in points if p.series == series.index]
         if measured:
             current = measured[-1].motors_deg
-    return Plan(tuple(series_list), tuple(points), tuple(skipped))
+    plan = Plan(tuple(series_list), tuple(points), tuple(skipped))
+    if ordering == "optimised":
+        plan = order_plan(plan, rig, START_DEG)
+    return drop_colliding_moves(plan, rig, START_DEG)
+
+
+def _outside_zones(motors: np.ndarray, limits: geo.AxisLimits,
+                   zones: Sequence[ForbiddenZone]) -> tuple[np.ndarray, np.ndarray]:
+    """Motors (n, 4) moved to the other arm branch where they lie in a forbidden zone and that one is
+    usable; and the zone (or "") each final position lies in."""
+    zone = zone_at(motors, zones)
+    twins = arm_branches(motors, limits, zones)[:, 1:]
+    usable = np.all(np.isfinite(twins), axis=-1)
+    move = (zone != "") & usable.any(axis=1)
+    first = twins[np.arange(len(motors)), np.argmax(usable, axis=1)]
+    return np.where(move[:, None], first, motors), np.where(move, "", zone)
+
+
+def _other_branches(motors: tuple[float, ...], limits: geo.AxisLimits,
+                    zones: Sequence[ForbiddenZone]) -> list[tuple[float, ...]]:
+    """The position's twins on the other arm branch that are inside the limits and outside every zone."""
+    twins = arm_branches(np.array([motors]), limits, zones)[0, 1:]
+    return [tuple(float(x) for x in m) for m in twins if np.all(np.isfinite(m))]
+
+
+def drop_colliding_moves(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG) -> Plan:
+    """Check every move in plan order; a move across a forbidden zone goes to the point's other arm
+    branch if that one's move is clear, else the point is left out (reason `collision:<zone>`).
+
+    The next move then starts from the last point kept.
+    """
+    zones = zones_of(rig)
+    if not zones:
+        return plan
+    limits = rig.axes.limits()
+    here, kept, dropped = tuple(start), [], []
+    for p in plan.points:
+        zone = path_crosses(here, p.motors_deg, zones, rig.axes)
+        clear = p.motors_deg if zone is None else next(
+            (m for m in _other_branches(p.motors_deg, limits, zones) if path_crosses(here, m, zones, rig.axes) is None),
+            None)
+        if clear is None:
+            dropped.append(SkippedPoint(p.point_id, p.series, p.theta_i_deg, p.phi_i_deg, p.theta_o_deg,
+                                        p.phi_o_deg, f"collision:{zone}"))
+        else:
+            kept.append(replace(p, motors_deg=clear))
+            here = clear
+    return replace(plan, points=tuple(kept), skipped=plan.skipped + tuple(dropped))
 
 
 def move_time_s(rig: RigConfig, start_deg: tuple[float, ...], target_deg: tuple[float, ...]) -> float:
     """All four axes start together; the slowest one (plus its settling) sets the time."""
-    times = [0.0]
-    for name, s, t in zip(geo.AXIS_NAMES, start_deg, target_deg):
-        if s != t:
-            cfg = getattr(rig.axes, name)
-            times.append(trapezoid_time_s(t - s, cfg.speed_deg_s, cfg.accel_deg_s2) + cfg.settle_s)
-    return max(times)
+    return float(travel_time_s(rig.axes, start_deg, target_deg))
 
 
 def estimate_rig_time_s(plan: Plan, rig: RigConfig, capture_s_per_point: float,
-                        start_deg: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)) -> float:
+                        start_deg: tuple[float, ...] = START_DEG) -> float:
     """Rig time of the measured points in plan order: moves plus a nominal capture time each."""
-    total, here = 0.0, start_deg
-    for p in plan.points:
-        total += move_time_s(rig, here, p.motors_deg) + capture_s_per_point
-        here = p.motors_deg
-    return total
+    motors = np.array([p.motors_deg for p in plan.points], float).reshape(-1, 4)
+    return path_time_s(rig.axes, start_deg, motors) + capture_s_per_point * len(plan.points)
+
+
+def rig_time_comparison(campaign: Campaign, rig: RigConfig, capture_s_per_point: float = 0.0) -> tuple[float, float]:
+    """Estimated rig time (s) of the campaign in table order and in optimised order (`rig plan`).
+
+    With forbidden zones the two orders may leave out different points (collisions depend on the order).
+    """
+    table, optimised = (build_plan(campaign, rig, ordering=o) for o in ("table", "optimised"))
+    return (estimate_rig_time_s(table, rig, capture_s_per_point),
+            estimate_rig_time_s(optimised, rig, capture_s_per_point))

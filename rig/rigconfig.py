@@ -15,6 +15,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from drivers.interfaces import SensorInfo
+from rig.collisions import CollisionsConfig
 from rig.configfile import ConfigFileError, parse_model, read_yaml
 from rig.geometry import AxisLimits
 
@@ -190,6 +191,7 @@ class RigConfig(_Strict):
     camera: CameraConfig = CameraConfig()
     lamp: LampConfig = LampConfig()
     meter: MeterConfig = MeterConfig()
+    collisions: CollisionsConfig = CollisionsConfig()
     simulation: SimulationConfig = SimulationConfig()
 
 

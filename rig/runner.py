@@ -24,6 +24,7 @@ from drivers.interfaces import DeviceError, RigDevices
 from rig import geometry as geo
 from rig.budget import BUDGET_COLUMNS, campaign_budget
 from rig.campaign import Campaign
+from rig.collisions import path_crosses, zones_of
 from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, capture_point
 from rig.dataset import DatasetWriter, utc_now
 from rig.illuminance import IlluminanceEstimate, ReadingSchedule, estimate, interpolate
@@ -44,6 +45,10 @@ class Progress:
 
 ProgressCallback = Callable[[Progress], None]
 T = TypeVar("T")
+
+
+class CollisionError(RuntimeError):
+    """A move would cross a forbidden zone of the rig configuration; nothing moved."""
 
 
 class StopRequested(Exception):
@@ -128,7 +133,14 @@ class Runner:
         self.progress(Progress(self.measured, len(self.plan.points), self.rig_time(), message))
 
     def _move(self, target: tuple[float, float, float, float]) -> None:
-        """Start all four axes together, then wait for each."""
+        """Start all four axes together, then wait for each; never through a forbidden zone.
+
+        The planner already routes around the zones; this guards the moves it did not
+        plan: the first one of a resume, a retry's, the park.
+        """
+        zone = path_crosses(self.position, target, zones_of(self.rig), self.rig.axes)
+        if zone is not None:
+            raise CollisionError(f"move from {self.position} to {target} (deg) would cross forbidden zone {zone!r}")
         timeout = (self.MOVE_TIMEOUT_FACTOR * move_time_s(self.rig, self.position, target)
                    + self.MOVE_TIMEOUT_MARGIN_S)
         axes = (*self.dev.stage.axes, *self.dev.arm.axes)
@@ -394,7 +406,11 @@ class Runner:
 
     def _park(self) -> None:
         self._report("parking")
-        self._move(self.PARK_DEG)
+        try:
+            self._move(self.PARK_DEG)
+        except CollisionError as exc:
+            self.writer.event("park_skipped", reason=str(exc), rig_time_s=self.rig_time())
+            return
         self.writer.event("parked", position_deg=list(self.PARK_DEG), rig_time_s=self.rig_time())
 
     def _measure_all(self) -> None:

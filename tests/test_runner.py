@@ -308,3 +308,19 @@ def test_manifest_carries_campaign_and_truth(tmp_path):
     assert m["simulated_brdf"]["params"]["n"] == 24.0
     assert m["rig"]["simulated"] is True
     assert "simulated_brdf" not in m["sample"]
+
+
+def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
+    from rig.collisions import CollisionsConfig, ForbiddenZone
+    from rig.runner import CollisionError
+    zone = ForbiddenZone(name="lamp_lever", description="test", arm_azimuth=(40.0, 50.0), arm_polar=(-10.0, 10.0))
+    rig_cfg = RigConfig(collisions=CollisionsConfig(zones=[zone]))
+    campaign = small_campaign()
+    writer = DatasetWriter(tmp_path / "ds", {})
+    with SimulatedRig(rig_cfg, "lambert", {"kd": 0.5}) as sim:
+        runner = Runner(campaign, build_plan(campaign, rig_cfg), sim.devices, writer, rig_cfg)
+        with pytest.raises(CollisionError, match="forbidden zone 'lamp_lever'"):
+            runner._move((0.0, 0.0, 90.0, 0.0))          # the arm would sweep through the lever
+        assert all(abs(ax.position_deg()) < 0.01 for ax in sim.devices.arm.axes)    # nothing moved
+        runner._move((0.0, 0.0, 90.0, 30.0))             # a path beside it is fine... if it stays clear
+    writer.close()
