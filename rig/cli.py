@@ -45,9 +45,10 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
           f"(moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point + ≥ {warm:.0f} s lamp warm-up; "
           "exposures depend on the sample)")
-    table_s, optimised_s = rig_time_comparison(campaign, rig, NOMINAL_CAPTURE_S)
-    print(f"  moves + capture: table order {format_duration(table_s)}, optimised order "
-          f"{format_duration(optimised_s)} ({optimised_s / table_s:.2f} × table)")
+    if plan.points:
+        table_s, optimised_s = rig_time_comparison(campaign, rig, NOMINAL_CAPTURE_S)
+        print(f"  moves + capture: table order {format_duration(table_s)}, optimised order "
+              f"{format_duration(optimised_s)} ({optimised_s / table_s:.2f} × table)")
 
 
 def _rig_config(args) -> RigConfig:
