@@ -34,7 +34,7 @@ from scipy.optimize import least_squares
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from paper_campaign import machine
+from rig.bench import machine
 
 from rig.brdf_models import MODELS
 from rig.cli import main as rig_main

@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from paper_campaign import machine  # noqa: E402
+from rig.bench import machine  # noqa: E402
 
 from rig.campaign import load_campaign  # noqa: E402
 from rig.cli import NOMINAL_CAPTURE_S  # noqa: E402

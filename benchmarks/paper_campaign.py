@@ -15,8 +15,6 @@ does not depend on how fast this machine happens to be today.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -31,6 +29,7 @@ sys.path.insert(0, str(ROOT))
 from drivers.interfaces import Window  # noqa: E402
 from drivers.modbus_axis import ModbusAxisController  # noqa: E402
 from drivers.transport import LineTransport  # noqa: E402
+from rig.bench import machine  # noqa: E402
 from rig.campaign import load_campaign  # noqa: E402
 from rig.execute import manifest_for  # noqa: E402
 from rig.dataset import DatasetWriter  # noqa: E402
@@ -91,19 +90,6 @@ class ProtocolMeter:
     def __exit__(self, *exc):
         for cls, name, original in self._saved:
             setattr(cls, name, original)
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (f"{platform.node()} | {cpu} | {os.cpu_count()} cores | Python {platform.python_version()} | "
-            f"numpy {np.__version__} | {platform.platform()}")
 
 
 def run_campaign(campaign_path: Path) -> dict:

@@ -50,7 +50,7 @@ def main() -> int:
     survived = {k: result.events.get(k, 0) for k in ("retry", "reconnect", "suspended", "resumed",
                                                      "points_discarded", "resume", "failed")}
     print(f"runs    : {[s for s, _ in result.attempts]} (restarts after persistent faults: {len(result.attempts) - 1})")
-    print(f"survived: " + ", ".join(f"{k} {v}" for k, v in survived.items()))
+    print("survived: " + ", ".join(f"{k} {v}" for k, v in survived.items()))
     print(f"dataset : same point set {c.same_points}, duplicates {c.duplicates}, "
           f"{c.within_2u:.1%} within 2 combined u of the fault-free run, max z {c.max_z:.2f}")
     print(f"wall    : {faulty_s:.1f} s with faults vs {clean_s:.1f} s fault-free = {faulty_s / clean_s:.2f}× "

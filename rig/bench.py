@@ -33,10 +33,10 @@ DEFAULT_CAMPAIGN = Path(__file__).resolve().parents[1] / "campaigns" / "spiering
 BASELINE = "fixed bracket 5×1 stop"
 SETTINGS: dict[str, dict[str, Any]] = {
     BASELINE: {"mode": "fixed_bracket"},
-    "adaptive SNR 50": {"mode": "adaptive", "target_snr": 50},
-    "adaptive SNR 200": {"mode": "adaptive", "target_snr": 200},
-    "adaptive SNR 1000": {"mode": "adaptive", "target_snr": 1000},
-    "adaptive SNR 200, 4 frames": {"mode": "adaptive", "target_snr": 200, "frames_per_exposure": 4},
+    "adaptive (defaults)": {"mode": "adaptive"},
+    "adaptive, peak at 20 %": {"mode": "adaptive", "target_fraction": 0.2},
+    "adaptive, SNR 5000": {"mode": "adaptive", "target_snr": 5000},
+    "adaptive, 4 frames": {"mode": "adaptive", "frames_per_exposure": 4},
 }
 
 
@@ -70,7 +70,17 @@ def run_settings(campaign: Campaign, campaign_path: Path, settings: Mapping[str,
 
 
 def machine() -> str:
-    return f"{platform.node()} | {platform.machine()} | {os.cpu_count()} cores | Python {platform.python_version()}"
+    """What benchmark figures were measured on: host, CPU model, cores, Python, numpy, OS."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return (f"{platform.node()} | {cpu} | {os.cpu_count()} cores | Python {platform.python_version()} | "
+            f"numpy {np.__version__} | {platform.platform()}")
 
 
 def format_table(results: Sequence[dict], campaign: str) -> str:

@@ -54,24 +54,24 @@ class Series:
 
 
 @dataclass(frozen=True)
-class PlannedPoint:
+class PointAngles:
+    """A planned direction pair: its stable id, series and requested BRDF angles (degrees)."""
+
     point_id: str
     series: int
     theta_i_deg: float
     phi_i_deg: float
     theta_o_deg: float
     phi_o_deg: float
+
+
+@dataclass(frozen=True)
+class PlannedPoint(PointAngles):
     motors_deg: tuple[float, float, float, float]   # stage_vertical, stage_normal, arm_azimuth, arm_polar
 
 
 @dataclass(frozen=True)
-class SkippedPoint:
-    point_id: str
-    series: int
-    theta_i_deg: float
-    phi_i_deg: float
-    theta_o_deg: float
-    phi_o_deg: float
+class SkippedPoint(PointAngles):
     reason: str
 
 

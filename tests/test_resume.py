@@ -7,7 +7,6 @@ write-ahead log) holds a random number of points.
 
 import csv
 import json
-import os
 import random
 import shutil
 import signal
