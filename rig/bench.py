@@ -35,7 +35,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
     BASELINE: {"mode": "fixed_bracket"},
     "adaptive (defaults)": {"mode": "adaptive"},
     "adaptive, peak at 20 %": {"mode": "adaptive", "target_fraction": 0.2},
-    "adaptive, SNR 5000": {"mode": "adaptive", "target_snr": 5000},
+    "adaptive, SNR 20000": {"mode": "adaptive", "target_snr": 20000},
     "adaptive, 4 frames": {"mode": "adaptive", "frames_per_exposure": 4},
 }
 
