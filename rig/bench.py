@@ -120,6 +120,7 @@ def plot(results: Sequence[dict], out_png: Path, title: str) -> None:
     ax.set_xlabel("rig time spent capturing (simulated), min")
     ax.set_ylabel("BRDF error vs simulated truth, %")
     ax.set_title(title, fontsize=10)
+    ax.set_ylim(bottom=0)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
