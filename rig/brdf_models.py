@@ -227,13 +227,16 @@ def abc_retro(wi: np.ndarray, wo: np.ndarray, *, kd: float, r0: float,
 def ggx(wi: np.ndarray, wo: np.ndarray, *, roughness: float, f0: float) -> np.ndarray:
     """GGX microfacet BRDF f = F(i·h) D(h·n) G2(i, o) / (4 cos θi cos θo) (Walter et al. 2007 Eq. 20).
 
-    D = GGX with α = `roughness` (no squaring remap), G2 = height-correlated Smith
-    (Heitz 2014 Eq. 99), F = Schlick with normal-incidence reflectance `f0`.
-    Reciprocal; single scattering only, so the albedo is < 1 for f0 ≤ 1.
+    D = GGX with α = `roughness`² — `roughness` is the perceptual roughness of OpenPBR and
+    MaterialX, the convention of the published MRM fit (Portsmouth 2026: 0.23 for the
+    yellow tape) — G2 = height-correlated Smith (Heitz 2014 Eq. 99), F = Schlick with
+    normal-incidence reflectance `f0`. Reciprocal; single scattering only, so the albedo
+    is < 1 for f0 ≤ 1.
     """
     h = half_vector(wi, wo)
-    return (schlick(_dot(wi, h), f0) * ggx_ndf(cos_theta(h), roughness)
-            * ggx_visibility(cos_theta(wi), cos_theta(wo), roughness))
+    alpha = roughness ** 2
+    return (schlick(_dot(wi, h), f0) * ggx_ndf(cos_theta(h), alpha)
+            * ggx_visibility(cos_theta(wi), cos_theta(wo), alpha))
 
 
 @_hemisphere
@@ -309,7 +312,7 @@ def albedo(model: BrdfModel, params: Mapping[str, float], theta_i_deg: np.ndarra
 
 _UNIT = (0.0, 1.0)
 _EXPONENT = (0.1, 1e5)
-_ROUGHNESS = (1e-3, 1.0)
+_ROUGHNESS = (0.03, 1.0)          # perceptual: α = roughness² from about 1e-3 to 1
 
 MODELS: dict[str, BrdfModel] = {
     m.name: m for m in (

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from rig import __version__, bench, fit
+from rig import __version__, bench, export, fit, importer, plots
 from drivers.interfaces import DeviceError, RigDevices
 from rig.campaign import Campaign, load_campaign
 from rig.dataset import DatasetError
@@ -173,7 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
     p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
     p_dev.set_defaults(func=cmd_devices)
-    for module in (fit, bench):
+    for module in (fit, importer, export, plots, bench):
         module.add_subcommand(sub)
     return parser
 

@@ -54,8 +54,8 @@ RECIPROCAL = {"lambert", "modified_phong", "oren_nayar", "beckmann_retro", "blin
 ENERGY_GRIDS = {
     "lambert": [{"kd": 1.0}],
     "modified_phong": [{"kd": kd, "ks": 1.0 - kd, "n": n} for kd in (0.0, 0.5) for n in (0.1, 1.0, 10.0, 300.0)],
-    "ggx": [{"roughness": a, "f0": f0} for a in (0.05, 0.23, 0.6, 1.0) for f0 in (0.04, 1.0)],
-    "mrm": [{"roughness": a, "f0": f0} for a in (0.05, 0.23, 0.6, 1.0) for f0 in (0.04, 1.0)],
+    "ggx": [{"roughness": r, "f0": f0} for r in (0.23, 0.48, 0.77, 1.0) for f0 in (0.04, 1.0)],
+    "mrm": [{"roughness": r, "f0": f0} for r in (0.23, 0.48, 0.77, 1.0) for f0 in (0.04, 1.0)],
 }
 
 
@@ -224,9 +224,10 @@ def test_oren_nayar_closed_form():
 
 
 def test_ggx_closed_form_at_mirror_and_off_mirror():
-    alpha, f0 = 0.3, 0.19
+    roughness, f0 = 0.3, 0.19
+    alpha = roughness ** 2                                      # perceptual roughness, as OpenPBR
     m = get_model("ggx")
-    p = {"roughness": alpha, "f0": f0}
+    p = {"roughness": roughness, "f0": f0}
     c = np.cos(np.radians(50))                                  # mirror: h = n, i·h = cos θi
     lam = smith_lambda_by_hand(c, alpha)
     expected = schlick_by_hand(c, f0) / (np.pi * alpha**2) / (1 + 2 * lam) / (4 * c * c)
@@ -247,8 +248,9 @@ def test_mrm_is_ggx_with_the_view_mirrored():
                                rtol=1e-14)
     # at exact retroreflection the back vector is n: the GGX mirror value, D = 1/(πα²)
     c = np.cos(np.radians(50))
-    lam = smith_lambda_by_hand(c, 0.23)
-    expected = schlick_by_hand(c, 0.19) / (np.pi * 0.23**2) / (1 + 2 * lam) / (4 * c * c)
+    alpha = 0.23 ** 2                                         # perceptual roughness 0.23
+    lam = smith_lambda_by_hand(c, alpha)
+    expected = schlick_by_hand(c, 0.19) / (np.pi * alpha**2) / (1 + 2 * lam) / (4 * c * c)
     assert MODELS["mrm"](d(50, 70), d(50, 70), p) == pytest.approx(expected, rel=1e-12)
     pd = {"kd": 0.4, **p}
     np.testing.assert_allclose(MODELS["mrm_diffuse"](wi, wo, pd), 0.4 / np.pi + MODELS["mrm"](wi, wo, p))
@@ -369,7 +371,7 @@ def test_oren_nayar_albedo_exceeds_rho_near_grazing_so_no_energy_claim():
     assert a[0] < 1 < a[1]
 
 
-@pytest.mark.parametrize("roughness, f0", [(0.1, 0.04), (0.23, 0.19), (0.5, 1.0), (1.0, 0.5)])
+@pytest.mark.parametrize("roughness, f0", [(0.32, 0.04), (0.23, 0.19), (0.5, 1.0), (1.0, 0.5)])
 def test_mrm_albedo_equals_ggx_albedo(roughness, f0):
     """Portsmouth 2026: o ↦ o' keeps dω and cos θo, so MRM and GGX reflect the same energy."""
     p = {"roughness": roughness, "f0": f0}
