@@ -26,6 +26,7 @@ from rig.campaign import Campaign, load_campaign
 from rig.configfile import ConfigFileError
 from rig.dataset import load
 from rig.execute import execute
+from rig.exits import fail
 from rig.plan import build_plan
 from rig.rigconfig import RigConfig
 
@@ -133,8 +134,7 @@ def cmd_error_vs_time(args) -> int:
     try:
         campaign = load_campaign(path)
     except ConfigFileError as exc:
-        print(f"rig: error: {exc}")
-        return 2
+        return fail(str(exc))
     results = run_settings(campaign, path, SETTINGS)
     print(format_table(results, path.name))
     out = Path(args.out)

@@ -38,7 +38,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.interfaces import Clock, DeviceError, Frame, LuminanceCamera, SensorInfo, Window
+from drivers.interfaces import (
+    Clock,
+    DeviceError,
+    Frame,
+    LuminanceCamera,
+    SensorInfo,
+    Window,
+)
 from rig.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
 from rig.roi import BLOCK_PX, mean_noise, roi_statistics
 

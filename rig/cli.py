@@ -6,27 +6,27 @@ import argparse
 import sys
 from pathlib import Path
 
-from rig import __version__, bench, export, fit, importer, plots
 from drivers.interfaces import DeviceError, RigDevices
+from rig import __version__, bench, export, fit, importer, plots
 from rig.campaign import Campaign, load_campaign
-from rig.dataset import DatasetError
-from rig.execute import execute
-from rig.resume import prepare_resume
-from rig.plan import Plan, build_plan, describe_reason, estimate_rig_time_s, rig_time_comparison
-from rig.progress import ProgressBar, format_duration
 from rig.configfile import ConfigFileError
 from rig.connect import open_rig
+from rig.dataset import DatasetError
+from rig.execute import execute
+from rig.exits import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
+from rig.plan import (
+    Plan,
+    build_plan,
+    describe_reason,
+    estimate_rig_time_s,
+    rig_time_comparison,
+)
+from rig.progress import ProgressBar, format_duration
+from rig.resume import prepare_resume
 from rig.rigconfig import RigConfig, load_rig_config
-
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: Nominal capture time per point for plan estimates: probe, one main exposure, readouts.
 NOMINAL_CAPTURE_S = 0.05
-
-
-def _fail(message: str) -> int:
-    print(f"rig: error: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
 
 
 def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
@@ -66,7 +66,7 @@ def cmd_plan(args) -> int:
     try:
         campaign, rig, plan = _load(args)
     except ConfigFileError as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     print_plan(plan, campaign, rig)
     return EXIT_OK
 
@@ -94,7 +94,7 @@ def cmd_devices(args) -> int:
             print(f"rig {rig.name} ({'simulated' if rig.simulated else 'hardware'})")
             print_devices(devices)
     except ConfigFileError as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     except DeviceError as exc:
         print(f"rig: device error: {exc}", file=sys.stderr)
         return EXIT_FAILED
@@ -105,7 +105,7 @@ def cmd_resume(args) -> int:
     try:
         r = prepare_resume(args.resume, force=args.force)
     except (ConfigFileError, DatasetError) as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     left = len(r.plan.points) - len(r.done_rows)
     print(f"rig {__version__}: resuming {r.campaign.name} in {args.resume}: {len(r.done_rows)} points done, "
           f"{left} to measure", file=sys.stderr)
@@ -131,16 +131,16 @@ def cmd_run(args) -> int:
     if args.resume:
         return cmd_resume(args)
     if not args.campaign:
-        return _fail("give a campaign file, or --resume DIR")
+        return fail("give a campaign file, or --resume DIR")
     try:
         campaign, rig, plan = _load(args)
     except ConfigFileError as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     if rig.simulated and campaign.sample.simulated_brdf is None:
-        return _fail(f"{args.campaign}: key 'sample.simulated_brdf' is required on the simulated rig "
+        return fail(f"{args.campaign}: key 'sample.simulated_brdf' is required on the simulated rig "
                      "(the sample's true BRDF: model and params)")
     if not plan.points:
-        return _fail(f"{args.campaign}: no point of the campaign can be measured "
+        return fail(f"{args.campaign}: no point of the campaign can be measured "
                      f"(skipped: {plan.skipped_by_reason()})")
     out = Path(args.out or campaign.output.dir)
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
@@ -150,7 +150,7 @@ def cmd_run(args) -> int:
         outcome = execute(campaign, Path(args.campaign), rig, plan, out,
                           progress=None if args.quiet else ProgressBar(), handle_signals=True)
     except DatasetError as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     return _report_outcome(outcome, len(plan.skipped))
 
 

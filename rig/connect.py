@@ -19,7 +19,9 @@ def open_rig(config: RigConfig, brdf_model: str | None = None,
              brdf_params: Mapping[str, float] | None = None) -> Iterator[RigDevices]:
     """Connected devices for the duration of the block; everything is closed afterwards."""
     if config.simulated:
-        from simulators.rig import SimulatedRig   # only the simulated rig needs the simulators
+        from simulators.rig import (
+            SimulatedRig,  # only the simulated rig needs the simulators
+        )
 
         model, params = (brdf_model, brdf_params) if brdf_model else NEUTRAL_SAMPLE
         with SimulatedRig(config, model, params) as sim:

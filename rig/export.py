@@ -39,6 +39,7 @@ import numpy as np
 from rig import __version__
 from rig.alta import write_alta
 from rig.dataset import Dataset, DatasetError, load
+from rig.exits import EXIT_OK, fail
 from rig.geometry import angle_between, sph_to_vec, vec_to_sph, wrap_360, wrap_pi
 
 FORMATS = ("alta", "radiance", "csv", "rl")
@@ -182,14 +183,13 @@ def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLik
 
 
 def cmd_export(args) -> int:
-    from rig.cli import EXIT_OK, _fail  # deferred: rig.cli imports this module
 
     try:
         paths = export(args.dataset, args.format, args.out)
     except (DatasetError, ExportError) as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     except OSError as exc:
-        return _fail(f"{exc.filename}: {exc.strerror}")
+        return fail(f"{exc.filename}: {exc.strerror}")
     print(f"exported {args.dataset} as {args.format} → {args.out} ({len(paths)} file{'s' * (len(paths) > 1)})",
           file=sys.stderr)
     return EXIT_OK

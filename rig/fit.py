@@ -39,6 +39,7 @@ from scipy.optimize import differential_evolution, least_squares
 
 from rig.brdf_models import MODELS, BrdfModel, get_model
 from rig.dataset import Dataset, DatasetError, load
+from rig.exits import EXIT_BAD_INPUT, EXIT_OK
 from rig.metrics import goodness_of_fit
 
 WEIGHTINGS = ("uncertainty", "none")
@@ -60,7 +61,6 @@ DISTINCT = 1e-3
 #: Starts within this relative cost of the best one, or within this fraction of the cost of a
 #: zero model (exact data have a best cost of ~0), count as having found it.
 SAME_COST_REL, SAME_COST_ABS = 1e-4, 1e-12
-EXIT_OK, EXIT_BAD_INPUT = 0, 2
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,7 @@ from rig.alta import (
     to_rig,
 )
 from rig.dataset import BRDF_COLUMNS, DatasetError, DatasetWriter, utc_now
+from rig.exits import EXIT_OK, fail
 from rig.plan import SkippedPoint
 
 MISSING_PARAM_OUT_DEFAULT = "INV_STERADIAN_COSINE_FACTOR"
@@ -153,15 +154,14 @@ def import_alta(path: str | Path, out_dir: str | Path, *, sample_id: str | None 
 
 
 def cmd_import(args) -> int:
-    from rig.cli import EXIT_OK, _fail  # deferred: rig.cli imports this module
 
     try:
         out = import_alta(args.alta_file, args.out, sample_id=args.sample_id,
                           assume_param_out=args.assume_param_out)
     except (AltaError, DatasetError) as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     except OSError as exc:
-        return _fail(f"{exc.filename}: {exc.strerror}")
+        return fail(f"{exc.filename}: {exc.strerror}")
     counts = json.loads((out / "dataset.json").read_text(encoding="utf-8"))["counts"]
     print(f"imported {args.alta_file} → {out}: {counts['measured']} points, {counts['skipped']} skipped "
           "(reasons in skipped.csv)", file=sys.stderr)

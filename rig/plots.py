@@ -32,6 +32,7 @@ from matplotlib.ticker import MaxNLocator
 
 from rig.brdf_models import get_model
 from rig.dataset import Dataset, DatasetError, load
+from rig.exits import EXIT_OK, fail
 from rig.export import series_incidence_deg
 from rig.geometry import mirror_direction, sph_to_vec
 
@@ -270,15 +271,14 @@ def read_fit(path: str | os.PathLike) -> dict:
 
 
 def cmd_plot(args) -> int:
-    from rig.cli import EXIT_OK, _fail  # deferred: rig.cli imports this module
 
     try:
         fit = read_fit(args.fit) if args.fit else None
         paths = plot_dataset(args.dataset, args.out, fit)
     except (DatasetError, ValueError, KeyError) as exc:
-        return _fail(str(exc).strip('"'))
+        return fail(str(exc).strip('"'))
     except OSError as exc:
-        return _fail(f"{exc.filename}: {exc.strerror}")
+        return fail(f"{exc.filename}: {exc.strerror}")
     print(f"{len(paths)} figures in {args.out}", file=sys.stderr)
     return EXIT_OK
 

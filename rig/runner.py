@@ -24,8 +24,8 @@ from drivers.interfaces import DeviceError, RigDevices
 from rig import geometry as geo
 from rig.budget import BUDGET_COLUMNS, campaign_budget
 from rig.campaign import Campaign
-from rig.collisions import path_crosses, zones_of
 from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, capture_point
+from rig.collisions import path_crosses, zones_of
 from rig.dataset import DatasetWriter, utc_now
 from rig.illuminance import IlluminanceEstimate, ReadingSchedule, estimate, interpolate
 from rig.images import write_luminance_exr
