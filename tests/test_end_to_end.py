@@ -109,3 +109,15 @@ def test_cli_entry_point_and_plan(tmp_path, test_campaigns_dir):
     assert proc.returncode == 0, proc.stderr
     assert "to measure:" in proc.stdout and "below_horizon" in proc.stdout
     assert "estimated rig time" in proc.stdout
+
+
+def test_budget_components_add_up_to_the_combined_uncertainty(reduced_run):
+    rows = read_rows(reduced_run)
+    components = ["u_rel_noise", "u_rel_dark", "u_rel_texture", "u_rel_calibration", "u_rel_illuminance",
+                  "u_rel_drift", "u_rel_angle"]
+    rss = np.sqrt(sum(column(rows, c) ** 2 for c in components))
+    np.testing.assert_allclose(rss, column(rows, "u_brdf_per_sr") / column(rows, "brdf_per_sr"), rtol=0.02)
+    budget = json.loads((reduced_run / "dataset.json").read_text())["uncertainty_budget"]
+    assert [b["component"] for b in budget] != [] and {b["component"] for b in budget} == set(components)
+    shares = [b["median_share_of_variance"] for b in budget]
+    assert shares == sorted(shares, reverse=True)          # largest contributors first
