@@ -312,8 +312,29 @@ def frames_for_snr(mean: float, var_frames: float, var_dark: float, n: int, m: i
     return int(counts[np.argmax(reached)]) if reached.any() else settings.max_frames
 
 
-def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> PointCapture:
-    """Expose, merge and reduce the ROI of the current view (see the module docstring)."""
+@dataclass(frozen=True)
+class Acquisition:
+    """Everything one point took from the camera; `reduce_point` turns it into numbers.
+
+    Split from the reduction so that the run engine can start the next move in
+    between: a full-frame merge (images saved) takes about a second.
+    """
+
+    sensor: SensorInfo
+    settings: CaptureSettings
+    roi: Window
+    window: Window                      # what the camera read
+    frames: tuple[np.ndarray, ...]      # per exposure: (n, H, W) raw frames of `window`
+    darks: tuple[np.ndarray, ...]       # per exposure: (m, H, W) dark frames of `window`
+    exposures_s: tuple[float, ...]      # realised
+    roi_merge: HdrMerge                 # the ROI's merge, from the frame-count decision
+    n_frames: int
+    n_darks: int
+    capture_time_s: float
+
+
+def acquire_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> Acquisition:
+    """Expose the current view as the ROI needs (see the module docstring); decisions look at the ROI only."""
     sensor = camera.sensor
     if settings.roi_px > min(sensor.width_px, sensor.height_px):
         raise ValueError(f"roi_px {settings.roi_px} exceeds the {sensor.width_px}×{sensor.height_px} sensor")
@@ -321,34 +342,51 @@ def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: Dar
     darks_before, dark_exposed_before = darks.n_taken, darks.exposed_s
     roi = Window.centred(sensor.width_px, sensor.height_px, settings.roi_px, settings.roi_px)
     window = camera.full_window() if settings.full_frame else _grown(roi, settings.window_margin_px, sensor)
-    merged_window = window if settings.full_frame else roi
-    in_merged = merged_window.inner(roi)                        # (rows, cols) in a merged image
-    in_window, region = ((slice(None), *window.inner(w)) for w in (roi, merged_window))   # in a frame stack
+    region = window if settings.full_frame else roi
+    in_window, in_region = ((slice(None), *window.inner(w)) for w in (roi, region))   # in a frame stack
     shots = _Shots(camera, window)
 
     metered_s = _metered_exposure(shots, in_window, darks, sensor, settings)
     if settings.mode == "fixed_bracket":
         exposures = fixed_bracket(metered_s, settings, darks, sensor)
     else:
-        exposures = _adaptive_exposures(shots, metered_s, in_window, region, darks, sensor, settings)
+        exposures = _adaptive_exposures(shots, metered_s, in_window, in_region, darks, sensor, settings)
 
-    def merge(n: int) -> tuple[HdrMerge, int]:
-        """Merge of n frames per exposure over the merged region, and the fewest darks per exposure."""
-        dark = [darks.get(camera, e, window, n, settings.dark_max_age_s)[region] for e in exposures]
-        return merge_exposures([shots.take(e, n)[region] for e in exposures], dark,
+    def roi_merge(n: int) -> tuple[HdrMerge, int]:
+        """Merge of n frames per exposure over the ROI, and the fewest darks per exposure."""
+        dark = [darks.get(camera, e, window, n, settings.dark_max_age_s)[in_window] for e in exposures]
+        return merge_exposures([shots.take(e, n)[in_window] for e in exposures], dark,
                                [shots.realised_s(e) for e in exposures], sensor), min(map(len, dark))
 
     n_next = settings.frames_per_exposure
     while True:
         n = n_next
-        merged, m = merge(n)
-        var_noise, var_dark = (mean_noise(v[in_merged]) ** 2 for v in (merged.var_rate, merged.var_dark))
+        merged, m = roi_merge(n)
         if settings.mode == "adaptive":
-            n_next = frames_for_snr(float(merged.rate_dn_s[in_merged].mean()), var_noise - var_dark, var_dark,
+            var_noise, var_dark = (mean_noise(v) ** 2 for v in (merged.var_rate, merged.var_dark))
+            n_next = frames_for_snr(float(merged.rate_dn_s.mean()), var_noise - var_dark, var_dark,
                                     n, m, settings)
         if n_next == n:
             break
+    return Acquisition(
+        sensor=sensor, settings=settings, roi=roi, window=window,
+        frames=tuple(shots.take(e, n) for e in exposures),
+        darks=tuple(darks.get(camera, e, window, n, settings.dark_max_age_s) for e in exposures),
+        exposures_s=tuple(shots.realised_s(e) for e in exposures), roi_merge=merged,
+        n_frames=shots.n_taken, n_darks=darks.n_taken - darks_before,
+        capture_time_s=(darks.clock.now() - start_s if darks.clock
+                        else shots.exposed_s + darks.exposed_s - dark_exposed_before))
 
+
+def reduce_point(acq: Acquisition) -> PointCapture:
+    """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O."""
+    sensor, settings = acq.sensor, acq.settings
+    if settings.full_frame:
+        merged = merge_exposures(acq.frames, acq.darks, acq.exposures_s, sensor)
+        in_merged = acq.window.inner(acq.roi)
+    else:
+        merged, in_merged = acq.roi_merge, (slice(None), slice(None))
+    var_dark = mean_noise(merged.var_dark[in_merged]) ** 2
     cal = sensor.calibration_cd_m2_per_dn_s
     luminance = merged.rate_dn_s * cal
     stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal ** 2)
@@ -361,16 +399,20 @@ def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: Dar
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=float(np.hypot(stats.u_mean, sensor.calibration_u_rel * stats.mean)),
         roi_std_cd_m2=stats.std,
-        exposures_s=tuple(shots.realised_s(e) for e in exposures),
+        exposures_s=acq.exposures_s,
         saturated_fraction=float(np.mean(merged.saturated[in_merged])),
         flags=tuple(flags),
         image_cd_m2=luminance if settings.full_frame else None,
-        roi_window=roi,
-        n_frames=shots.n_taken,
+        roi_window=acq.roi,
+        n_frames=acq.n_frames,
         u_noise_cd_m2=stats.u_mean_noise,
         u_dark_cd_m2=float(np.sqrt(var_dark)) * cal,
         u_texture_cd_m2=stats.u_texture,
-        capture_time_s=(darks.clock.now() - start_s if darks.clock
-                        else shots.exposed_s + darks.exposed_s - dark_exposed_before),
-        n_darks=darks.n_taken - darks_before,
+        capture_time_s=acq.capture_time_s,
+        n_darks=acq.n_darks,
     )
+
+
+def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> PointCapture:
+    """Expose, merge and reduce the ROI of the current view (see the module docstring)."""
+    return reduce_point(acquire_point(camera, settings, darks))

@@ -24,7 +24,7 @@ from drivers.interfaces import DeviceError, RigDevices
 from rig import geometry as geo
 from rig.budget import BUDGET_COLUMNS, campaign_budget
 from rig.campaign import Campaign
-from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, capture_point
+from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, acquire_point, reduce_point
 from rig.collisions import path_crosses, zones_of
 from rig.dataset import DatasetWriter, utc_now
 from rig.illuminance import IlluminanceEstimate, ReadingSchedule, estimate, interpolate
@@ -114,6 +114,7 @@ class Runner:
         self.reading: IlluminanceEstimate | None = None
         self._points_since_reading = 0
         self.lamp_ref_v: float | None = None       # lamp voltage when warm: the voltage suspender's reference
+        self.moving_to: tuple[float, ...] | None = None   # target of a move started and not yet waited for
         devices.route_events(self._device_event)
         self.position = tuple(self._read_back())
 
@@ -132,23 +133,30 @@ class Runner:
     def _report(self, message: str = "") -> None:
         self.progress(Progress(self.measured, len(self.plan.points), self.rig_time(), message))
 
-    def _move(self, target: tuple[float, float, float, float]) -> None:
-        """Start all four axes together, then wait for each; never through a forbidden zone.
+    def _start_move(self, target: tuple[float, float, float, float]) -> None:
+        """Start all four axes together toward `target`, never through a forbidden zone.
 
         The planner already routes around the zones; this guards the moves it did not
         plan: the first one of a resume, a retry's, the park.
         """
+        if self.moving_to is not None:          # interrupted on its way: where is it now?
+            self.position = tuple(self._read_back())
         zone = path_crosses(self.position, target, zones_of(self.rig), self.rig.axes)
         if zone is not None:
             raise CollisionError(f"move from {self.position} to {target} (deg) would cross forbidden zone {zone!r}")
+        for axis, value in zip((*self.dev.stage.axes, *self.dev.arm.axes), target):
+            axis.start_move(value)
+        self.moving_to = target
+
+    def _move(self, target: tuple[float, float, float, float]) -> None:
+        """Be at `target`: wait for the move already under way there, else start one, then wait."""
+        if self.moving_to != target:
+            self._start_move(target)
         timeout = (self.MOVE_TIMEOUT_FACTOR * move_time_s(self.rig, self.position, target)
                    + self.MOVE_TIMEOUT_MARGIN_S)
-        axes = (*self.dev.stage.axes, *self.dev.arm.axes)
-        for axis, value in zip(axes, target):
-            axis.start_move(value)
-        for axis in axes:
+        for axis in (*self.dev.stage.axes, *self.dev.arm.axes):
             axis.wait(timeout)
-        self.position = target
+        self.position, self.moving_to = target, None
 
     # -- phases ------------------------------------------------------------------------------
     def _log_identities(self) -> None:
@@ -309,12 +317,16 @@ class Runner:
         self.writer.append_row(row)
         self.rows.append(row)
 
-    def _measure_point(self, point: PlannedPoint) -> Measurement:
+    def _measure_point(self, point: PlannedPoint, next_point: PlannedPoint | None = None) -> Measurement:
+        """Move, read back, expose; the move to `next_point` starts before the frames are merged."""
         self._move(point.motors_deg)
         motors = tuple(self._read_back())
         angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
         time_utc, rig_time = utc_now(), self.rig_time()
-        cap = capture_point(self.dev.camera, self.settings, self.darks)
+        acquisition = acquire_point(self.dev.camera, self.settings, self.darks)
+        if next_point is not None:
+            self._start_move(next_point.motors_deg)      # merging and writing overlap the next move
+        cap = reduce_point(acquisition)
         flags = list(cap.flags)
         m = np.radians(motors)
         if not roi_inside_spot(m[0], m[1], m[2], m[3], self.settings.roi_px, self.optics,
@@ -362,7 +374,7 @@ class Runner:
             "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s, **budget,
         }
 
-    def _measure_guarded(self, point: PlannedPoint) -> list[PlannedPoint]:
+    def _measure_guarded(self, point: PlannedPoint, next_point: PlannedPoint | None) -> list[PlannedPoint]:
         """Measure one point under the suspenders; returns the points to (re-)take before going on."""
         problem = self._answering(self._lamp_problem)
         if problem is not None:
@@ -374,7 +386,7 @@ class Runner:
             self._suspend("lamp", problem, self._lamp_problem, rewarm=True)
             return retake + [point]
         try:
-            m = self._measure_point(point)
+            m = self._measure_point(point, next_point)
         except DeviceError as exc:
             if exc.unanswered:
                 self._suspend(exc.device, str(exc), self._probe(exc.device))
@@ -385,7 +397,7 @@ class Runner:
             self.writer.event("retry", point_id=point.point_id, device=exc.device, error=str(exc),
                               rig_time_s=self.rig_time())
             self.position = tuple(self._read_back())
-            m = self._measure_point(point)
+            m = self._measure_point(point, next_point)
             m = replace(m, flags=m.flags + ("retried",))
         self.measured += 1
         self._points_since_reading += 1
@@ -429,7 +441,7 @@ class Runner:
                 point = queue[0]
             previous_series = point.series
             queue.popleft()
-            retake = self._measure_guarded(point)
+            retake = self._measure_guarded(point, queue[0] if queue else None)
             if retake:
                 queue.extendleft(reversed(retake))
                 continue

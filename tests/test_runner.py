@@ -324,3 +324,28 @@ def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
         assert all(abs(ax.position_deg()) < 0.01 for ax in sim.devices.arm.axes)    # nothing moved
         runner._move((0.0, 0.0, 90.0, 30.0))             # a path beside it is fine... if it stays clear
     writer.close()
+
+
+def test_next_move_starts_before_the_point_is_merged_and_written(tmp_path, monkeypatch):
+    """Merging (a second for a full frame) and writing overlap the move to the next point."""
+    import rig.runner as runner_module
+    log = []
+    reduce = runner_module.reduce_point
+    monkeypatch.setattr(runner_module, "reduce_point", lambda acq: (log.append("merge"), reduce(acq))[1])
+    campaign = small_campaign()
+    rig_cfg = RigConfig()
+    writer = DatasetWriter(tmp_path / "ds", {})
+    with SimulatedRig(rig_cfg, "lambert", {"kd": 0.5}) as sim:
+        arm_azimuth = sim.devices.arm.axes[0]
+        start = arm_azimuth.start_move
+        monkeypatch.setattr(arm_azimuth, "start_move", lambda deg: (log.append("move"), start(deg))[1])
+        assert Runner(campaign, build_plan(campaign, rig_cfg), sim.devices, writer, rig_cfg).run() == "complete"
+        sim.world.clock.sleep(1.0)
+        assert not any(ax.is_moving() for ax in (*sim.devices.stage.axes, *sim.devices.arm.axes))
+    writer.close()
+    merges = [k for k, what in enumerate(log) if what == "merge"]
+    assert len(merges) == 16
+    # every merge but the last is preceded directly by the start of the next move
+    assert all(log[k - 1] == "move" for k in merges[:-1])
+    assert sorted(r["point_id"] for r in rows(tmp_path / "ds")) == sorted(p.point_id for p in build_plan(
+        campaign, rig_cfg).points)
