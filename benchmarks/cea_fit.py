@@ -27,7 +27,7 @@ from rig.dataset import load  # noqa: E402
 from rig.fit import fit  # noqa: E402
 from rig.importer import import_alta  # noqa: E402
 
-CEA = ROOT.parent / "shared" / "data" / "cea-retro"
+CEA = ROOT / "tests" / "data" / "cea-retro"          # vendored ALTA project data (MPL-2.0, see PROVENANCE.md)
 #: Belcour 2014 Table 1, back-vector parametrisation (our model names in brackets).
 BELCOUR_L2 = {
     "yellow": {"abc_retro": 0.443, "modified_phong": 0.689, "blinn_retro": 1.109, "beckmann_retro": 1.505},

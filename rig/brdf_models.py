@@ -1,4 +1,4 @@
-"""BRDF models, vectorised over arrays of directions (shared/reference/seeds-digest.md).
+"""BRDF models, vectorised over arrays of directions (each model cites its paper in `citation`).
 
 Every model takes unit vectors in the sample coordinate system (z = normal),
 both pointing away from the surface, with shape (..., 3), and returns f_r in sr⁻¹.

@@ -1,4 +1,4 @@
-"""Angle conventions and goniometer kinematics (contract: shared/spec/geometry.md).
+"""Angle conventions and goniometer kinematics (contract: docs/geometry.md).
 
 Pure, vectorised numpy. Radians inside; functions whose names end in `_deg`
 take and return degrees and are the only ones the rest of the application

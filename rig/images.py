@@ -1,4 +1,4 @@
-"""HDR luminance images as single-channel float32 OpenEXR files (dataset.md, Images)."""
+"""HDR luminance images as single-channel float32 OpenEXR files (docs/dataset.md, Images)."""
 
 from __future__ import annotations
 

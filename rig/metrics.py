@@ -1,4 +1,4 @@
-"""Goodness of fit exactly as Spieringhs et al. 2023, Eqs. 16, 19, 20 (shared/reference/seeds-digest.md).
+"""Goodness of fit exactly as Spieringhs et al. 2023, Eqs. 16, 19, 20 (JOSA A 40(3), 590–601).
 
 `fm` are the measured BRDF values, `fr` the model's, over the same N (incidence, view)
 pairs, both unweighted (sr⁻¹): the paper's tables are comparable only so.

@@ -1,4 +1,4 @@
-"""Shared paths for the tests."""
+"""Shared paths for the tests: everything they read lies inside the repository."""
 
 from pathlib import Path
 
@@ -15,3 +15,9 @@ def campaigns_dir() -> Path:
 @pytest.fixture
 def test_campaigns_dir() -> Path:
     return ROOT / "tests" / "campaigns"
+
+
+@pytest.fixture(scope="session")
+def cea_dir() -> Path:
+    """The vendored CEA retroreflective tapes (ALTA project data, MPL-2.0; see its PROVENANCE.md)."""
+    return ROOT / "tests" / "data" / "cea-retro"

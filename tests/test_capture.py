@@ -72,6 +72,11 @@ def luminance(rate_e_s):
     return np.mean(rate_e_s) * GAIN_DN_PER_E * CAL_CD_M2_PER_DN_S
 
 
+def exposures_of(camera, exposure_s: float) -> int:
+    """How many light frames the camera took at this exposure time (s, within round-off)."""
+    return sum(t == pytest.approx(exposure_s, rel=1e-12) for t, _ in camera.light_calls)
+
+
 def roi_of(camera, capture):
     rows, cols = camera.full_window().inner(capture.roi_window)
     return camera.scene_e_s[rows, cols]
@@ -80,7 +85,8 @@ def roi_of(camera, capture):
 def test_exposure_puts_the_peak_near_the_target_without_saturating():
     camera = FakeCamera(flat(1.0e5))
     capture = capture_point(camera, SETTINGS, DarkFrameCache())
-    assert len(capture.exposures_s) == 1 and capture.saturated_fraction == 0.0 and capture.flags == ()
+    assert len(capture.exposures_s) == 1 and capture.saturated_fraction == pytest.approx(0.0, abs=1e-12)
+    assert capture.flags == ()
     ideal_s = 0.7 * (saturation_threshold_dn(camera.sensor) - 64) / (1.0e5 * GAIN_DN_PER_E)
     assert 0.6 * ideal_s < capture.exposures_s[0] <= 1.1 * ideal_s
     assert capture.luminance_cd_m2 == pytest.approx(luminance(1.0e5), abs=4 * capture.u_luminance_cd_m2)
@@ -92,8 +98,8 @@ def test_exposure_puts_the_peak_near_the_target_without_saturating():
 def test_a_bright_roi_is_exposed_short_enough():
     camera = FakeCamera(flat(1.0e8))                  # the 2 ms probe collects 10× the full well
     capture = capture_point(camera, SETTINGS, DarkFrameCache())
-    assert capture.exposures_s == (2.0 ** -13,)        # probe 2⁻⁹ s → 2⁻¹¹ s → 2⁻¹³ s
-    assert capture.saturated_fraction == 0.0 and capture.flags == ()
+    assert capture.exposures_s == pytest.approx((2.0 ** -13,), rel=1e-12)   # probe 2⁻⁹ s → 2⁻¹¹ s → 2⁻¹³ s
+    assert capture.saturated_fraction == pytest.approx(0.0, abs=1e-12) and capture.flags == ()
     assert capture.luminance_cd_m2 == pytest.approx(luminance(1.0e8), abs=4 * capture.u_luminance_cd_m2)
 
 
@@ -111,16 +117,16 @@ def test_a_high_dynamic_range_roi_gets_several_exposures_and_an_unbiased_mean():
 def test_a_dim_roi_gets_the_longest_exposure_and_is_flagged():
     camera = FakeCamera(flat(0.0))
     capture = capture_point(camera, SETTINGS, DarkFrameCache())
-    assert capture.exposures_s == (10.0,) and "low_signal" in capture.flags
-    assert sum(t == 10.0 for t, _ in camera.light_calls) == 1     # averaging could not help: not tried
+    assert capture.exposures_s == pytest.approx((10.0,), rel=1e-12) and "low_signal" in capture.flags
+    assert exposures_of(camera, 10.0) == 1                       # averaging could not help: not tried
     assert capture.luminance_cd_m2 == pytest.approx(0.0, abs=4 * capture.u_luminance_cd_m2)
 
 
 def test_a_roi_saturated_at_the_shortest_exposure_is_flagged():
     camera = FakeCamera(flat(1.0e10))
     capture = capture_point(camera, SETTINGS, DarkFrameCache())
-    assert capture.exposures_s == (1e-4,) and "roi_saturated" in capture.flags
-    assert capture.saturated_fraction == 1.0
+    assert capture.exposures_s == pytest.approx((1e-4,), rel=1e-12) and "roi_saturated" in capture.flags
+    assert capture.saturated_fraction == pytest.approx(1.0, abs=1e-12)
     assert np.isfinite(capture.luminance_cd_m2) and capture.luminance_cd_m2 < luminance(1.0e10)
 
 
@@ -161,6 +167,7 @@ def test_snap_is_idempotent_and_stays_in_range(exposure_s, max_exposure_s):
     sensor = dataclasses.replace(FakeCamera(flat(0.0, (2, 2))).sensor, max_exposure_s=max_exposure_s)
     snapped = DarkFrameCache().snap(exposure_s, sensor)
     assert sensor.min_exposure_s <= snapped <= sensor.max_exposure_s
+    # exact on purpose: ladder exposures are the dark cache's dictionary keys, so snap must be a projection
     assert DarkFrameCache().snap(snapped, sensor) == snapped
     if sensor.min_exposure_s * 1.06 < exposure_s < sensor.max_exposure_s / 1.06:
         assert abs(np.log2(snapped / exposure_s)) <= 1 / 12 + 1e-12
@@ -171,7 +178,7 @@ def test_frame_averaging_and_full_frame():
     settings = dataclasses.replace(SETTINGS, frames_per_exposure=3, full_frame=True)
     capture = capture_point(camera, settings, DarkFrameCache())
     merged_s = capture.exposures_s[0]
-    assert sum(t == merged_s for t, _ in camera.light_calls) == 3
+    assert exposures_of(camera, merged_s) == 3
     assert capture.image_cd_m2.shape == (100, 120)
     assert all(window == camera.full_window() for _, window in camera.light_calls)
     rows, cols = camera.full_window().inner(capture.roi_window)
@@ -235,8 +242,9 @@ def test_fixed_bracket_is_five_exposures_one_stop_apart_centred_on_the_metered_o
     adaptive = capture_point(FakeCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
     assert len(cap.exposures_s) == 5
     np.testing.assert_allclose(np.diff(np.log2(cap.exposures_s)), 1.0, atol=1e-9)
-    assert cap.exposures_s[2] == adaptive.exposures_s[0]
-    assert cap.saturated_fraction == 1.0 and "roi_saturated" not in cap.flags   # the longest clip, are left out
+    assert cap.exposures_s[2] == pytest.approx(adaptive.exposures_s[0], rel=1e-12)
+    assert cap.saturated_fraction == pytest.approx(1.0, abs=1e-12)     # the longest clip, are left out
+    assert "roi_saturated" not in cap.flags
 
 
 @pytest.mark.parametrize("centre_s", [1e-4, 3e-3, 10.0])
@@ -246,22 +254,22 @@ def test_fixed_bracket_is_shifted_into_the_sensor_range_keeping_its_count(centre
                             darks, sensor)
     assert len(bracket) == 5 and sensor.min_exposure_s <= bracket[0] and bracket[-1] <= sensor.max_exposure_s
     np.testing.assert_allclose(np.diff(np.log2(bracket)), 1.0, atol=1 / 6)     # within a ladder step at the ends
-    assert all(darks.snap(t, sensor) == t for t in bracket)
+    assert all(darks.snap(t, sensor) == t for t in bracket)         # exact: ladder rungs (dark cache keys)
 
 
 def test_frame_averaging_reaches_the_target_snr_on_a_dark_scene_within_max_frames():
     settings = dataclasses.replace(SETTINGS, target_snr=50.0)
     camera = FakeCamera(flat(2.0))                      # 20 e⁻ in 10 s over 500 e⁻ of dark current
     cap = capture_point(camera, settings, DarkFrameCache())
-    averaged = sum(t == 10.0 for t, _ in camera.light_calls)
-    assert cap.exposures_s == (10.0,) and 1 < averaged < settings.max_frames
+    averaged = exposures_of(camera, 10.0)
+    assert cap.exposures_s == pytest.approx((10.0,), rel=1e-12) and 1 < averaged < settings.max_frames
     assert cap.luminance_cd_m2 / cap.u_noise_cd_m2 >= 50.0
     assert cap.n_darks >= averaged                      # the dark's noise is averaged alike
     assert cap.luminance_cd_m2 == pytest.approx(luminance(2.0), abs=4 * cap.u_luminance_cd_m2)
 
     camera = FakeCamera(flat(2.0))
     cap = capture_point(camera, dataclasses.replace(settings, max_frames=3), DarkFrameCache())
-    assert sum(t == 10.0 for t, _ in camera.light_calls) == 3 and cap.luminance_cd_m2 / cap.u_noise_cd_m2 < 50.0
+    assert exposures_of(camera, 10.0) == 3 and cap.luminance_cd_m2 / cap.u_noise_cd_m2 < 50.0
 
 
 def test_frames_for_snr():

@@ -1,19 +1,15 @@
-"""Real measured data (CEA retroreflective tapes, Belcour 2014; shared/data/cea-retro): imported
+"""Real measured data (CEA retroreflective tapes, Belcour 2014; vendored in tests/data/cea-retro): imported
 with `rig import`, fitted with `rig fit --model mrm`, compared with the published MRM fit
 (Portsmouth 2026: GGX roughness 0.23, F0 0.19 for the yellow tape)."""
 
 import json
-from pathlib import Path
-
 
 from rig.cli import main
 
-CEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cea-retro"
 
-
-def test_yellow_tape_mrm_fit_lands_near_the_published_values(tmp_path, capsys):
+def test_yellow_tape_mrm_fit_lands_near_the_published_values(tmp_path, capsys, cea_dir):
     out = tmp_path / "yellow"
-    assert main(["import", str(CEA / "retro-3M-yellow.alta"), "--out", str(out)]) == 0
+    assert main(["import", str(cea_dir / "retro-3M-yellow.alta"), "--out", str(out)]) == 0
     fit_json = tmp_path / "mrm.json"
     assert main(["fit", str(out), "--model", "mrm", "--unweighted", "--json", str(fit_json)]) == 0
     result = json.loads(fit_json.read_text())

@@ -191,12 +191,13 @@ def test_constant_current_ramp_has_no_overshoot_and_warms_the_filament(lamp, wor
     lamp.set_current(4.17, ramp_s=5.0)
     assert world.clock.now() - t0 == pytest.approx(5.0)
     times, currents = zip(*setpoints[1:])
-    assert len(currents) == 50 and currents[-1] == 4.17 and max(currents) == 4.17
+    assert len(currents) == 50 and currents[-1] == pytest.approx(4.17, abs=1e-12)
+    assert max(currents) == pytest.approx(4.17, abs=1e-12)                  # no overshoot
     assert all(b >= a for a, b in pairwise(currents))
     assert [t - t0 for t in times] == pytest.approx([0.1 * k for k in range(1, 51)])
     world.clock.sleep(2.0)
     current, voltage = lamp.measure_current_a(), lamp.measure_voltage_v()
-    assert current == 4.17
+    assert current == pytest.approx(4.17, abs=1e-12)
     assert voltage == pytest.approx(12.0, abs=1e-4)        # hot filament: rated voltage at nominal current
     assert voltage / current == pytest.approx(world.lamp.resistance_ohm(), abs=1e-4)
 
@@ -219,7 +220,7 @@ def test_transient_fault_is_retried_after_a_reconnect(lamp, peer, events, fault)
     lamp.set_current(4.17)
     lamp.set_output(True)
     peer.inject(fault)
-    assert lamp.measure_current_a() == 4.17
+    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
     assert [kind for kind, _ in events] == ["retry", "reconnect"]
     assert events[0][1]["what"] == "MEASure:CURrent?"
 
@@ -276,7 +277,7 @@ def test_burn_out_shows_as_no_current_at_the_voltage_limit(lamp, peer, world):
     assert lamp.measure_voltage_v() == peer.max_voltage_v
     assert world.illuminance_normal_lx() == 0.0
     world.lamp.replace()
-    assert lamp.measure_current_a() == 4.17
+    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
 
 
 def test_switching_off_is_confirmed_by_read_back_despite_stale_errors(lamp, peer, events):

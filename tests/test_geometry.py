@@ -1,4 +1,4 @@
-"""Tests of rig.geometry against the contract /work/shared/spec/geometry.md.
+"""Tests of rig.geometry against the contract docs/geometry.md.
 
 Tolerances
 ----------
@@ -12,6 +12,10 @@ Tolerances
   on φ at the pole).  Everywhere else we check |Δφ|·sin θ < 1e-9° (i.e. the azimuth
   error is consistent with a direction error within the contract), and at the exact
   poles that the requested φ is returned (forward_deg's pole handling).
+* Computed angles are never compared with ``==``: trigonometric kernels differ between CPU
+  classes (numpy dispatches AVX2/FMA3 or AVX-512 code), so even "exact" values such as a
+  pole's θ = 0 or a clipped limit are compared within 1e-12 (CI runs this file a second time
+  with numpy's SIMD dispatch restricted, see .ci/run).
 * Round-off alone gives errors ~1e-13°.  The only larger, deliberate error: a requested
   angle whose representative lies within 1e-12 turn (3.6e-10°) outside a limit is
   snapped onto the limit (inverse_deg's tolerance) - still inside the 1e-9° contract.
@@ -19,11 +23,9 @@ Tolerances
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -154,21 +156,28 @@ def arm_candidates(ti, pi_, to, po):
     return a0, b0, rho < 1e-12
 
 
-def representatives(angle, lo, hi, turns=4):
-    """All angle + 360k inside [lo, hi] (list of arrays, NaN where not inside)."""
+#: Reachability is decided by round-off at a limit: inverse_deg snaps within 3.6e-10° onto it, the
+#: brute force here allows 1e-9°. Requests this close to a limit may come out either way.
+LIMIT_TOL_DEG = 1e-9
+
+
+def representatives(angle, lo, hi, turns=4, tol=LIMIT_TOL_DEG):
+    """All angle + 360k inside [lo - tol, hi + tol] (list of arrays, NaN where not inside)."""
     out = []
     for k in range(-turns, turns + 1):
         v = angle + 360.0 * k
-        out.append(np.where((v >= lo - 1e-9) & (v <= hi + 1e-9), v, np.nan))
+        out.append(np.where((v >= lo - tol) & (v <= hi + tol), v, np.nan))
     return np.stack(out, axis=-1)
 
 
-def best_arm_cost(a0, b0, at_pole, limits: AxisLimits, cur_a, cur_b):
-    """Brute-force minimum |Δa| + |Δb| over both branches and all representatives; inf if none."""
+def best_arm_cost(a0, b0, at_pole, limits: AxisLimits, cur_a, cur_b, tol=LIMIT_TOL_DEG):
+    """Brute-force minimum |Δa| + |Δb| over both branches and all representatives; inf if none.
+
+    `tol` widens the limits (a negative one narrows them: reachable without any round-off doubt)."""
     best = np.full(np.shape(a0), np.inf)
     for a_br, b_br in ((a0, b0), (a0 + 180.0, -b0)):
-        a_reps = representatives(a_br, *limits.arm_azimuth)
-        b_reps = representatives(b_br, *limits.arm_polar)
+        a_reps = representatives(a_br, *limits.arm_azimuth, tol=tol)
+        b_reps = representatives(b_br, *limits.arm_polar, tol=tol)
         cost = (np.abs(a_reps[..., :, None] - cur_a) + np.abs(b_reps[..., None, :] - cur_b))
         cost = np.where(np.isnan(cost), np.inf, cost).min(axis=(-1, -2))
         # at the arm pole the azimuth is free: keeping the current one costs nothing
@@ -211,9 +220,9 @@ def test_vec_to_sph_round_trip():
 
 def test_vec_to_sph_pole_keeps_requested_phi():
     th, ph = vec_to_sph(np.array([0.0, 0.0, 1.0]), phi_at_pole=1.25)
-    assert th == 0.0 and ph == 1.25
+    assert th == pytest.approx(0.0, abs=1e-15) and ph == pytest.approx(1.25, abs=1e-15)
     th, ph = vec_to_sph(np.array([0.0, 0.0, -1.0]), phi_at_pole=0.5)
-    assert th == pytest.approx(np.pi) and ph == 0.5
+    assert th == pytest.approx(np.pi) and ph == pytest.approx(0.5, abs=1e-15)
     # the kept azimuth is wrapped too, and is broadcast per vector
     v = np.array([[0.0, 0.0, 1.0], [1e-20, -1e-20, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     th, ph = vec_to_sph(v, phi_at_pole=np.array([2 * np.pi + 0.5, -0.5, 3.0, 2 * np.pi]))
@@ -229,7 +238,9 @@ def test_wrap_2pi_edges():
     w = wrap_2pi(tiny)
     assert np.all((w >= 0.0) & (w < 2 * np.pi))
     assert np.all(np.degrees(w) < 360.0)
-    assert wrap_2pi(2 * np.pi) == 0.0 and wrap_2pi(-1e-300) == 0.0 and wrap_2pi(-1e-17) == 0.0
+    # values that round to 2π become 0, not 2π − ε
+    for edge in (2 * np.pi, -1e-300, -1e-17):
+        assert wrap_2pi(edge) == pytest.approx(0.0, abs=1e-15), edge
     assert wrap_2pi(-1e-15) == pytest.approx(2 * np.pi - 1e-15, abs=1e-15)
 
 
@@ -238,7 +249,7 @@ def test_wrap_360():
                   -30.0, 390.0, 1e9 + 0.5])
     w = geo.wrap_360(x)
     assert np.all((w >= 0.0) & (w < 360.0))
-    np.testing.assert_array_equal(w[[0, 1, 2, 3, 4, 5, 6]], 0.0)
+    np.testing.assert_allclose(w[[0, 1, 2, 3, 4, 5, 6]], 0.0, rtol=0, atol=1e-12)     # 0, never ~360
     np.testing.assert_allclose(w[7:], [1e-300, 359.99999999999994, 330.0, 30.0, 280.5], rtol=1e-15)
 
 
@@ -283,7 +294,7 @@ def test_angle_between_tiny_and_near_pi(eps):
 def test_angle_between_basic():
     x, y, z = np.eye(3)
     assert angle_between(x, y) == pytest.approx(np.pi / 2)
-    assert angle_between(x, x) == 0.0
+    assert angle_between(x, x) == pytest.approx(0.0, abs=1e-15)
     assert angle_between(x, -x) == pytest.approx(np.pi)
     assert angle_between(x, np.array([1.0, 1.0, 0.0])) == pytest.approx(np.pi / 4)
 
@@ -313,12 +324,12 @@ def test_rotation_matrix_vs_scipy_and_orthonormal():
 
 
 def test_sample_frame_home_and_reference():
-    np.testing.assert_allclose(sample_frame(0.0, 0.0), geo.M0, atol=0)
+    np.testing.assert_allclose(sample_frame(0.0, 0.0), geo.M0, rtol=0, atol=1e-15)
     # home: n faces the lamp (0,-1,0), x = (1,0,0), y = (0,0,1)
     f = sample_frame(0.0, 0.0)
-    np.testing.assert_array_equal(f[:, 0], [1, 0, 0])
-    np.testing.assert_array_equal(f[:, 1], [0, 0, 1])
-    np.testing.assert_array_equal(f[:, 2], [0, -1, 0])
+    np.testing.assert_allclose(f[:, 0], [1, 0, 0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f[:, 1], [0, 0, 1], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f[:, 2], [0, -1, 0], rtol=0, atol=1e-15)
     rng = np.random.default_rng(3)
     al, be = rng.uniform(-400, 400, (2, 300))
     f = sample_frame(np.radians(al), np.radians(be))
@@ -367,11 +378,11 @@ def test_lamp_direction_gcs():
 
 def test_home_position():
     got = forward_deg(0.0, 0.0, 0.0, 0.0)
-    assert got.theta_i_deg == 0.0
+    assert got.theta_i_deg == pytest.approx(0.0, abs=1e-12)
     assert got.theta_o_deg == pytest.approx(90.0, abs=1e-12)
     assert got.phi_o_deg == pytest.approx(90.0, abs=1e-12)
     wi, wo = directions_scs(0.0, 0.0, 0.0, 0.0)
-    np.testing.assert_allclose(wi, [0, 0, 1], atol=0)     # normal faces the lamp
+    np.testing.assert_allclose(wi, [0, 0, 1], rtol=0, atol=1e-16)     # normal faces the lamp
     np.testing.assert_allclose(wo, [0, 1, 0], atol=1e-16)  # camera on GCS +Z = sample y
     assert isinstance(got, BrdfAngles)
 
@@ -387,7 +398,7 @@ def test_stage_gives_incidence():
     np.testing.assert_allclose(got.theta_i_deg, ti, atol=TOL_DEG, rtol=0)
     assert circ_diff_deg(got.phi_i_deg, pi_)[ti >= PHI_THETA_MIN_DEG].max() < TOL_DEG
     assert angle_deg(vec_deg(ti, pi_), vec_deg(got.theta_i_deg, got.phi_i_deg)).max() < TOL_DEG
-    assert np.all(got.phi_i_deg[ti == 0] == pi_[ti == 0])
+    np.testing.assert_allclose(got.phi_i_deg[ti == 0], pi_[ti == 0], rtol=0, atol=1e-12)   # kept at the pole
 
 
 def test_camera_at_lamp_is_exact_retro():
@@ -417,7 +428,7 @@ def test_mirror_direction():
     th2, ph2 = vec_to_sph(m)
     np.testing.assert_allclose(th2, th, atol=1e-14)
     assert np.abs(wrap_pi(ph2 - ph - np.pi))[np.sin(th) > 1e-6].max() < 1e-12
-    np.testing.assert_array_equal(mirror_direction(np.array([0.0, 0.0, 1.0]))[2], 1.0)
+    assert mirror_direction(np.array([0.0, 0.0, 1.0]))[2] == pytest.approx(1.0, abs=1e-15)
     # the mirror is a reflection about z of the incidence: ωi + ωo ∥ z
     s = sph_to_vec(th, ph) + m
     np.testing.assert_allclose(s[:, :2], 0.0, atol=1e-15)
@@ -465,16 +476,21 @@ def test_round_trip_narrow_limits(limits):
     assert_round_trip(*req, m, mask=finite)
     # brute-force reachability
     ti, pi_, to, po = req
-    stage_ok = (np.any(np.isfinite(representatives(-ti, *limits.stage_vertical)), axis=-1)
-                & np.any(np.isfinite(representatives(-pi_, *limits.stage_normal)), axis=-1))
+
+    def stage_ok(tol):
+        return (np.any(np.isfinite(representatives(-ti, *limits.stage_vertical, tol=tol)), axis=-1)
+                & np.any(np.isfinite(representatives(-pi_, *limits.stage_normal, tol=tol)), axis=-1))
+
     sub = np.arange(n)
     a0, b0, pole = arm_candidates(*(x[sub] for x in req))
     arm_cost = best_arm_cost(a0, b0, pole, limits, cur[2], cur[3])
-    reachable = stage_ok[sub] & np.isfinite(arm_cost)
-    np.testing.assert_array_equal(finite[sub], reachable)
+    reachable = stage_ok(LIMIT_TOL_DEG)[sub] & np.isfinite(arm_cost)
+    surely = stage_ok(-LIMIT_TOL_DEG)[sub] & np.isfinite(best_arm_cost(a0, b0, pole, limits, cur[2], cur[3],
+                                                                      tol=-LIMIT_TOL_DEG))
+    assert np.all(finite[sub] | ~surely) and np.all(reachable | ~finite[sub])
     # the chosen arm pose is the nearest one (sum of the two arm moves)
     got_cost = np.abs(arr[sub, 2] - cur[2]) + np.abs(arr[sub, 3] - cur[3])
-    ok = reachable
+    ok = reachable & finite[sub]
     np.testing.assert_allclose(got_cost[ok], arm_cost[ok], atol=1e-9)
     # the stage representatives are the nearest ones too
     for k, name, want in ((0, "stage_vertical", -ti[sub]), (1, "stage_normal", -pi_[sub])):
@@ -497,7 +513,7 @@ def test_arm_pole_keeps_current_azimuth():
     for cur_a in (0.0, 37.0, -123.4, 179.0):
         m = inverse_deg(ti, pi_, th, ph, current_deg=(0.0, 0.0, cur_a, 20.0))
         np.testing.assert_allclose(m.arm_polar_deg, 0.0, atol=1e-9)
-        np.testing.assert_array_equal(m.arm_azimuth_deg, cur_a)
+        np.testing.assert_allclose(m.arm_azimuth_deg, cur_a, rtol=0, atol=1e-12)
         assert_round_trip(ti, pi_, th, ph, m)
     # home view from home keeps everything at zero
     m = inverse_deg(0.0, 0.0, 90.0, 90.0)
@@ -516,7 +532,7 @@ def test_view_pole_theta_o_zero():
     np.testing.assert_allclose(m.as_array(), m2.as_array(), atol=1e-12)
     got = forward_deg(*m.as_array().T, phi_i_at_pole_deg=pi_, phi_o_at_pole_deg=po)
     assert np.abs(got.theta_o_deg).max() < TOL_DEG
-    np.testing.assert_array_equal(got.phi_o_deg, po)        # the requested φo is emitted
+    np.testing.assert_allclose(got.phi_o_deg, po, rtol=0, atol=1e-12)   # the requested φo is emitted
     got0 = forward_deg(*m.as_array().T)
     assert np.all(np.isfinite(got0.phi_o_deg))              # finite even without one
     assert_round_trip(ti, pi_, 0.0, po, m)
@@ -528,10 +544,10 @@ def test_incidence_pole_theta_i_zero():
     pi_ = np.r_[0.0, 0.0001, 359.9999, 360.0, rng.uniform(0, 360, 200)]
     to, po = rng.uniform(0.5, 89, pi_.size), rng.uniform(0, 360, pi_.size)
     m = inverse_deg(0.0, pi_, to, po)
-    np.testing.assert_allclose(m.stage_vertical_deg, 0.0, atol=0)
+    np.testing.assert_allclose(m.stage_vertical_deg, 0.0, rtol=0, atol=1e-12)
     assert circ_diff_deg(m.stage_normal_deg, -pi_).max() < 1e-12
     got = forward_deg(*m.as_array().T, phi_i_at_pole_deg=pi_, phi_o_at_pole_deg=po)
-    np.testing.assert_array_equal(got.theta_i_deg, 0.0)
+    np.testing.assert_allclose(got.theta_i_deg, 0.0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got.phi_i_deg, pi_ % 360.0, atol=1e-12)
     assert_round_trip(0.0, pi_, to, po, m)
     # without a requested φi the writer still gets a finite value
@@ -555,8 +571,9 @@ def test_both_poles():
         assert (circ_diff_deg(a, -90.0) < 1e-9 and abs(b - 90.0) < 1e-9) or \
                (circ_diff_deg(a, 90.0) < 1e-9 and abs(b + 90.0) < 1e-9)
         got = forward_deg(*m.as_array(), phi_i_at_pole_deg=pi_, phi_o_at_pole_deg=po)
-        assert got.theta_i_deg == 0.0 and got.theta_o_deg < TOL_DEG
-        assert got.phi_i_deg == pi_ % 360.0 and got.phi_o_deg == po % 360.0
+        assert got.theta_i_deg == pytest.approx(0.0, abs=1e-12) and got.theta_o_deg < TOL_DEG
+        assert got.phi_i_deg == pytest.approx(pi_ % 360.0, abs=1e-12)
+        assert got.phi_o_deg == pytest.approx(po % 360.0, abs=1e-12)
     # from home the choice is deterministic: the documented (−90°, 90°)
     m = inverse_deg(0.0, 0.0, 0.0, 0.0)
     np.testing.assert_allclose([m.arm_azimuth_deg, m.arm_polar_deg], [-90.0, 90.0], atol=1e-12)
@@ -612,9 +629,9 @@ def test_forward_phi_always_in_range():
                     phi_o_at_pole_deg=360.0)
     assert np.all((g.phi_i_deg >= 0.0) & (g.phi_i_deg < 360.0))
     np.testing.assert_allclose(circ_diff_deg(g.phi_i_deg, [0.0, 350.0, 5.0, 0.0]), 0.0, atol=1e-9)
-    assert np.all(g.phi_o_deg == 0.0)
+    np.testing.assert_allclose(g.phi_o_deg, 0.0, rtol=0, atol=1e-12)
     g = forward_deg(0.0, 0.0, -90.0, 90.0, phi_i_at_pole_deg=-1e-14, phi_o_at_pole_deg=-1e-300)
-    assert g.phi_i_deg == 0.0 and g.phi_o_deg == 0.0
+    assert g.phi_i_deg == pytest.approx(0.0, abs=1e-12) and g.phi_o_deg == pytest.approx(0.0, abs=1e-12)
 
 
 def test_near_but_not_at_the_pole_phi_is_measured():
@@ -714,11 +731,12 @@ def test_limits_are_never_exceeded_at_the_boundary():
                         arm_azimuth=(-3.7, 1.5), arm_polar=(-1.9, 3.8))
     # arm pole from outside the azimuth limits: the free azimuth is clipped onto 1.5
     m = inverse_deg(0.0, 0.0, 90.0, 90.0, limits=limits, current_deg=(0.0, 0.0, 2.0, 0.0))
-    assert float(m.arm_azimuth_deg) == 1.5 and float(m.arm_polar_deg) == pytest.approx(0.0, abs=1e-12)
+    assert float(m.arm_azimuth_deg) == pytest.approx(1.5, abs=1e-12)
+    assert float(m.arm_polar_deg) == pytest.approx(0.0, abs=1e-12)
     assert_within_limits(m, limits)
     # representatives sitting exactly on a limit (φi = 1.9 → β = −1.9)
     m = inverse_deg(0.0, 1.9, 90.0, 90.0 + 1.9, limits=limits)
-    assert float(m.stage_normal_deg) == -1.9
+    assert float(m.stage_normal_deg) == pytest.approx(-1.9, abs=1e-12)
     assert_within_limits(m, limits)
 
 
@@ -761,7 +779,7 @@ def _table2():
 def test_centre_pattern_identity_for_z():
     th, ph = _table2()
     d = centre_pattern(th, ph, np.array([0.0, 0.0, 1.0]))
-    np.testing.assert_array_equal(d, sph_to_vec(th, ph))
+    np.testing.assert_allclose(d, sph_to_vec(th, ph), rtol=0, atol=1e-16)
     d = centre_pattern(th, ph, np.array([0.0, 0.0, 2.5]))        # not normalised
     np.testing.assert_allclose(d, sph_to_vec(th, ph), atol=1e-16)
 
@@ -848,6 +866,8 @@ def test_property_round_trip_default_limits(ti, pi_, to, po, cur):
                      st.floats(-180.0, 180.0, **angle_strategy), st.floats(-180.0, 180.0, **angle_strategy)),
        lim_a=st.tuples(st.floats(-400.0, 0.0, **angle_strategy), st.floats(0.0, 400.0, **angle_strategy)),
        lim_b=st.tuples(st.floats(-200.0, 0.0, **angle_strategy), st.floats(0.0, 200.0, **angle_strategy)))
+# a zero-width azimuth range and a view 0.002° from the arm pole: the twin's azimuth misses 0 by 5e-10°
+@example(m=(-65.0, 0.0, 0.0, -0.002), cur=(0.0, 181.0, 0.0, 0.0), lim_a=(0.0, 0.0), lim_b=(-1.0, 0.0))
 def test_property_forward_inverse_forward(m, cur, lim_a, lim_b):
     """Any achieved view is planned back to a pose with the same view (or NaN if the limits forbid)."""
     got = forward_deg(*m)
@@ -858,31 +878,18 @@ def test_property_forward_inverse_forward(m, cur, lim_a, lim_b):
     m2 = inverse_deg(*req, limits=limits, current_deg=cur)
     a0, b0, pole = arm_candidates(*req)
     reachable = np.isfinite(best_arm_cost(a0, b0, pole, limits, cur[2], cur[3]))[0]
+    surely = np.isfinite(best_arm_cost(a0, b0, pole, limits, cur[2], cur[3], tol=-LIMIT_TOL_DEG))[0]
     arr = m2.as_array()
-    assert np.all(np.isfinite(arr)) == reachable
-    if reachable:
+    finite = np.all(np.isfinite(arr))
+    assert (finite or not surely) and (reachable or not finite)     # within round-off of a limit: either
+    if finite:
         assert_within_limits(m2, limits)
         assert_round_trip(*req, m2)
     else:
         assert np.all(np.isnan(arr))
 
 
-# --------------------------------------------------------------------------- speed
-def test_inverse_is_fast_enough_for_planning():
-    rng = np.random.default_rng(21)
-    req = random_requests(rng, 100_000, specials=False)
-    inverse_deg(*(x[:10] for x in req))          # warm-up
-    t0 = time.perf_counter()
-    m = inverse_deg(*req, current_deg=(10.0, 20.0, 30.0, 40.0))
-    t_inv = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    forward_deg(*m.as_array().T)
-    t_fwd = time.perf_counter() - t0
-    print(f"inverse_deg 1e5: {t_inv * 1e3:.1f} ms, forward_deg 1e5: {t_fwd * 1e3:.1f} ms")
-    assert t_inv < 1.0
-    assert t_fwd < 1.0
-
-
+# --------------------------------------------------------------------------- API
 def test_public_api():
     assert AXIS_NAMES == ("stage_vertical", "stage_normal", "arm_azimuth", "arm_polar")
     m = inverse_deg(10.0, 20.0, 30.0, 40.0)

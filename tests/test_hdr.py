@@ -130,7 +130,7 @@ def test_frame_averaging_divides_the_frame_noise():
 
 def test_saturation_threshold_is_just_below_full_scale():
     assert SENSOR.black_level_dn < saturation_threshold_dn(SENSOR) < SENSOR.saturation_dn
-    assert saturation_threshold_dn(SENSOR, 0.0) == SENSOR.saturation_dn
+    assert saturation_threshold_dn(SENSOR, 0.0) == pytest.approx(SENSOR.saturation_dn, abs=1e-9)
 
 
 def test_mismatched_inputs_are_refused():

@@ -3,7 +3,6 @@
 import argparse
 import csv
 import hashlib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,15 +12,14 @@ from rig.alta import write_alta
 from rig.dataset import load
 from rig.geometry import angle_between, mirror_direction
 
-CEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cea-retro"
-YELLOW, GRAY = CEA / "retro-3M-yellow.alta", CEA / "retro-gray-tape.alta"
+#: The vendored CEA tapes (tests/data/cea-retro, the `cea_dir` fixture) by short name.
+TAPES = {"yellow": "retro-3M-yellow.alta", "gray": "retro-gray-tape.alta"}
 
 
 @pytest.fixture(scope="module")
-def imported(tmp_path_factory):
+def imported(tmp_path_factory, cea_dir):
     root = tmp_path_factory.mktemp("cea")
-    return {name: load(importer.import_alta(path, root / name))
-            for name, path in (("yellow", YELLOW), ("gray", GRAY))}
+    return {name: load(importer.import_alta(cea_dir / file, root / name)) for name, file in TAPES.items()}
 
 
 @pytest.mark.parametrize("name, rows, sample", [("yellow", 7397, "3M Yellow"), ("gray", 7405, "Gray Tape")])
@@ -36,7 +34,7 @@ def test_counts_and_angle_ranges(imported, name, rows, sample):
     for s, theta_i in enumerate((15.0, 30.0, 60.0)):
         rows_s = ds["series"] == s
         assert np.allclose(ds["theta_i_deg"][rows_s], theta_i)
-    assert np.all(ds["phi_i_deg"] == 0.0)
+    np.testing.assert_allclose(ds["phi_i_deg"], 0.0, rtol=0, atol=1e-12)
     assert ds["theta_o_deg"].min() == pytest.approx(0.0, abs=1e-12) and ds["theta_o_deg"].max() == pytest.approx(87.0)
     assert np.all((ds["phi_o_deg"] >= 0) & (ds["phi_o_deg"] < 360))
     assert np.all(np.isfinite(ds["brdf_per_sr"])) and np.all(ds["brdf_per_sr"] > 0)
@@ -68,8 +66,9 @@ def test_values_are_divided_by_cos_theta_v(imported):
     assert ds["illuminance_normal_lx"][k] == 1.0
 
 
-def test_provenance_in_the_manifest(imported):
-    for name, path in (("yellow", YELLOW), ("gray", GRAY)):
+def test_provenance_in_the_manifest(imported, cea_dir):
+    for name, file in TAPES.items():
+        path = cea_dir / file
         m = imported[name].manifest
         prov = m["provenance"]
         assert m["rig"]["simulated"] is False
@@ -123,8 +122,8 @@ def test_cli_import(tmp_path, capsys):
     assert not (tmp_path / "ds2").exists()
 
 
-def test_skipped_csv_names_the_source_line(imported):
+def test_skipped_csv_names_the_source_line(imported, cea_dir):
     with open(imported["yellow"].path / "skipped.csv", newline="") as fh:
         first = next(csv.DictReader(fh))
     assert first["point_id"] == "00-L8"                # line 8: the first data row, θV = 90°
-    assert YELLOW.read_text().splitlines()[7].startswith("0.2617993877991494")
+    assert (cea_dir / TAPES["yellow"]).read_text().splitlines()[7].startswith("0.2617993877991494")

@@ -129,7 +129,7 @@ def test_burn_out_opens_the_filament_and_replacement_restores_it(clock):
     lp.replace()
     assert not lp.burnt_out
     assert lp.resistance_ohm() == pytest.approx(lp.cold_resistance_ohm)    # a new lamp starts cold
-    assert lp.filament_current_a() == NOMINAL_A
+    assert lp.filament_current_a() == pytest.approx(NOMINAL_A, abs=1e-12)
     assert lp.relative_output() == pytest.approx(1.0 + SIM.warmup_amplitude)   # and warms up again
 
 
@@ -144,5 +144,5 @@ def test_world_lamp_keeps_the_interface_of_the_camera_and_meter():
     world.lamp.switch(True)
     world.clock.sleep(SIM.warmup_tau_s)
     expected = (1 + SIM.warmup_amplitude / math.e) * (1 + SIM.drift_per_hour * SIM.warmup_tau_s / 3600)
-    assert world.lamp.output_on and world.lamp.current_a() == 4.17
+    assert world.lamp.output_on and world.lamp.current_a() == pytest.approx(4.17, abs=1e-12)
     assert world.illuminance_normal_lx() == pytest.approx(SIM.illuminance_normal_lx * expected)

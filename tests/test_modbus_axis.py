@@ -2,9 +2,7 @@
 
 import select
 import socket
-import statistics
 import threading
-import time
 from types import SimpleNamespace
 
 import pytest
@@ -212,7 +210,8 @@ def relayed(no_thread_leak):
 def test_register_exchanges_replayed(relayed):
     azimuth, polar = relayed.axes
     TwoAxisPositioner("arm", azimuth, polar).move_to(150.0, -12.345)
-    assert azimuth.position_deg() == 149.999 and polar.position_deg() == -12.344
+    assert azimuth.position_deg() == pytest.approx(149.999, abs=1e-9)      # encoder steps / 1000
+    assert polar.position_deg() == pytest.approx(-12.344, abs=1e-9)
     h = bytes.fromhex
     assert relayed.relay.requests == [
         # FC 23: read STATUS..COMMAND_POS of axis 0, write TARGET 150000, SPEED 15000, ACCEL 30000, START
@@ -310,7 +309,8 @@ def test_server_stops_cleanly_and_idempotently(no_thread_leak):
 
 
 def test_one_point_of_four_axes_on_two_controllers(no_thread_leak):
-    """start + wait + read-back of 4 axes: 12 round trips, well under the 10 ms overhead target."""
+    """start + wait + read-back of 4 axes on two controllers, point after point (the protocol's wall
+    time per point is a benchmark: benchmarks/paper_campaign.py)."""
     world = make_world()
     with ModbusAxisServer(world, ARM) as arm_server, ModbusAxisServer(world, STAGE) as stage_server:
         controllers, axes = [], []
@@ -318,16 +318,14 @@ def test_one_point_of_four_axes_on_two_controllers(no_thread_leak):
             controller, _, these = connect(url, world, name, cfg)
             controllers.append(controller)
             axes += these
-        walls = []
         for i in range(40):
             sign = 1 if i % 2 else -1
-            t = time.perf_counter()
-            for axis, target in zip(axes, (sign * 5.0, sign * 10.0, sign * 20.0, sign * 30.0)):
+            targets = (sign * 5.0, sign * 10.0, sign * 20.0, sign * 30.0)
+            for axis, target in zip(axes, targets):
                 axis.start_move(target)
             for axis in axes:
                 axis.wait()
-            [axis.position_deg() for axis in axes]
-            walls.append(time.perf_counter() - t)
+            # the load lags the last travel by the backlash; one encoder step is 0.001°
+            assert [axis.position_deg() for axis in axes] == pytest.approx(targets, abs=LASH + 0.001)
         for controller in controllers:
             controller.close()
-    assert statistics.median(walls) < 0.010

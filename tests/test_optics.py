@@ -1,6 +1,9 @@
-"""Closed-form checks of the pinhole camera and lamp-spot optics (rig.optics)."""
+"""Closed-form checks of the pinhole camera and lamp-spot optics (rig.optics).
 
-import time
+The speed of roi_inside_spot is a benchmark (benchmarks/hot_paths.py), not a test.
+"""
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -33,7 +36,8 @@ def sample_points(alpha, beta, a, b, window=FULL):
 
 
 def test_from_config_converts_units():
-    assert OPTICS == CameraOptics(1390, 1040, 6.45e-6, 0.05, 1.54)
+    assert (OPTICS.width_px, OPTICS.height_px) == (1390, 1040)
+    assert dataclasses.astuple(OPTICS)[2:] == pytest.approx((6.45e-6, 0.05, 1.54), rel=1e-12)
 
 
 @pytest.mark.parametrize("a_deg, b_deg", [(0, 0), (-90, 90), (37, -61), (150, 20)])
@@ -94,8 +98,11 @@ def test_lit_footprint_is_ellipse_r_by_r_over_cos_theta_i(theta_i):
     semi_y = np.abs(xy[lit][:, 1]).max()
     assert semi_x == pytest.approx(R_SPOT / np.cos(np.radians(theta_i)), abs=PX_ON_SAMPLE)
     assert semi_y == pytest.approx(R_SPOT, abs=PX_ON_SAMPLE)
-    inside = (xy[..., 0] * np.cos(np.radians(theta_i))) ** 2 + xy[..., 1] ** 2 <= R_SPOT ** 2
-    assert np.array_equal(lit, inside)
+    radius2 = (xy[..., 0] * np.cos(np.radians(theta_i))) ** 2 + xy[..., 1] ** 2
+    # pixels within round-off of the rim may fall either way (two computations, any CPU's kernels)
+    clear = np.abs(radius2 - R_SPOT ** 2) > 1e-9 * R_SPOT ** 2
+    assert clear.mean() > 0.99
+    np.testing.assert_array_equal(lit[clear], (radius2 <= R_SPOT ** 2)[clear])
 
 
 def test_roi_inside_spot_at_normal_view_and_not_at_grazing_view():
@@ -140,7 +147,7 @@ def test_roi_prediction_agrees_with_the_pixels():
         assert in_beam(points, R_SPOT).all() or not pred   # a predicted-lit ROI has every pixel lit
 
 
-def test_roi_inside_spot_is_vectorised_and_fast():
+def test_roi_inside_spot_is_vectorised():
     rng = np.random.default_rng(0)
     n = 3000
     poses = motor_rad(*rng.uniform([0, 0, 0, 0], [85, 360, 89, 360], (n, 4)).T)
@@ -148,11 +155,3 @@ def test_roi_inside_spot_is_vectorised_and_fast():
     result = roi_inside_spot(*poses, 70, OPTICS, R_SPOT)
     assert result.shape == (n,) and result.dtype == bool
     assert list(result[:20]) == one_by_one
-    best = min(_timed(lambda: roi_inside_spot(*poses, 70, OPTICS, R_SPOT)) for _ in range(5))
-    assert best < 10e-3
-
-
-def _timed(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start

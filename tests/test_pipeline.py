@@ -16,7 +16,7 @@ def test_closed_form_at_60_degrees():
 
 @pytest.mark.parametrize("theta_deg, u_rel", [(30, 0.001), (60, 0.003), (80, 0.010), (85, 0.020), (88, 0.050)])
 def test_angle_sensitivity_table(theta_deg, u_rel):
-    """measurement.md: u_θ = 0.1° alone gives these relative uncertainties."""
+    """GUM sensitivity of f = L / (E⊥ cos θi) to θi: u_θ = 0.1° alone gives u_rel = tan θi · u_θ, these values."""
     result = brdf_from_luminance(50.0, 0.0, 2000.0, 0.0, theta_deg, 0.1)
     assert result.u_brdf_per_sr / result.brdf_per_sr == pytest.approx(u_rel, rel=0.02)
 

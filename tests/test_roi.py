@@ -12,10 +12,11 @@ def test_block_means_tile_from_the_corner_and_drop_partial_blocks():
 
 def test_flat_image_closed_form():
     stats = roi_statistics(np.full((30, 40), 5.0), np.full((30, 40), 4.0))
-    assert stats.mean == 5.0 and stats.u_mean == 0.0 and stats.std == 0.0
+    assert stats.mean == pytest.approx(5.0, rel=1e-12)
+    assert stats.u_mean == pytest.approx(0.0, abs=1e-12) and stats.std == pytest.approx(0.0, abs=1e-12)
     assert stats.u_mean_noise == pytest.approx(2.0 / np.sqrt(1200))
     assert stats.n == 1200 and stats.n_blocks == 12
-    assert stats.u_texture == 0.0                      # noise alone, and more than the block spread
+    assert stats.u_texture == pytest.approx(0.0, abs=1e-12)   # noise alone, and more than the block spread
 
 
 def test_mean_noise_closed_form():

@@ -1,6 +1,7 @@
-"""Simulated camera, sensor model and sample texture against closed-form expectations."""
+"""Simulated camera, sensor model and sample texture against closed-form expectations.
 
-import time
+The camera's speed is a benchmark (benchmarks/hot_paths.py), not a test.
+"""
 
 import numpy as np
 import pytest
@@ -87,14 +88,16 @@ def test_rendered_footprint_is_ellipse_r_by_r_over_cos_theta_i():
 def test_outside_the_spot_is_ambient_and_a_dark_lamp_is_dark():
     cam = make_camera(ambient_cd_m2=3.0, **QUIET)
     lum = cam.luminance(cam.full_window(), 5000.0)
-    assert lum[0, 0] == 3.0 and (lum == 3.0).mean() > 0.5
+    ambient = np.isclose(lum, 3.0, rtol=1e-12, atol=0)
+    assert ambient[0, 0] and ambient.mean() > 0.5
     for name, deg in zip(AXIS_NAMES, (100.0, 0.0, 10.0, 90.0)):        # lamp behind the sample
         cam.world.axis_truth[name] = lambda deg=deg: deg
-    assert (cam.luminance(cam.full_window(), 5000.0) == 3.0).all()
+    np.testing.assert_allclose(cam.luminance(cam.full_window(), 5000.0), 3.0, rtol=1e-12, atol=0)
     pose(cam.world, 30, 0, 20, 90)
     cam.world.lamp.switch(False)
     lum_off = cam.luminance(cam.full_window(), cam.world.illuminance_normal_lx())
-    assert set(np.unique(lum_off)) == {0.0, 3.0}
+    dark, ambient = np.isclose(lum_off, 0.0, rtol=0, atol=1e-12), np.isclose(lum_off, 3.0, rtol=1e-12, atol=0)
+    assert np.all(dark | ambient) and dark.any() and ambient.any()     # nothing but black and ambient
 
 
 def test_windowed_render_equals_the_full_frame_pixels():
@@ -194,8 +197,8 @@ def test_fixed_patterns_belong_to_the_sensor_not_the_window():
                                     np.random.default_rng(0))
     full = Window(0, 0, 1390, 1040)
     window = Window(17, 900, 64, 40)
-    np.testing.assert_array_equal(model.mean_electrons(3.0, 0.2, window),
-                                  model.mean_electrons(3.0, 0.2, full)[full.inner(window)])
+    np.testing.assert_allclose(model.mean_electrons(3.0, 0.2, window),
+                               model.mean_electrons(3.0, 0.2, full)[full.inner(window)], rtol=1e-12, atol=0)
     assert model.gain.std() == pytest.approx(0.05, rel=0.01)
     assert model.dark_e_s.std() == pytest.approx(5.0, rel=0.01)
 
@@ -240,22 +243,6 @@ def test_bad_requests_raise_device_errors():
     with pytest.raises(DeviceError):
         cam.capture(float("nan"), ROI)
     assert "sim" in cam.identity()
-
-
-def test_captures_are_fast():
-    cam = make_camera()
-    roi = Window.centred(1390, 1040, 70, 70)                           # the campaigns' ROI
-    best = min(_timed(lambda: cam.capture(0.01, roi)) for _ in range(20))
-    assert best < 2e-3
-    assert min(_timed(lambda: cam.capture(0.01)) for _ in range(2)) < 0.5
-    cam.glint = lambda *args: 1.0
-    assert best - min(_timed(lambda: cam.capture(0.01, roi)) for _ in range(20)) < 1e-3   # the glints' share
-
-
-def _timed(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
 
 
 # --- texture -----------------------------------------------------------------------------
@@ -309,7 +296,8 @@ def test_glint_has_unit_mean_and_the_expected_std_over_positions_and_directions(
     values = GlintTexture(contrast=0.1, grain_m=5e-4, angle_rad=np.radians(2), seed=9)(x, y, wi, wo)
     assert values.mean() == pytest.approx(1.0, abs=1e-3)
     assert values.std() == pytest.approx(0.1 * (26 / 35) ** 2, rel=0.03)   # smoothstep blend over 4 axes
-    np.testing.assert_array_equal(GlintTexture(0.0, 5e-4, np.radians(2), 9)(x[:50], y[:50], wi[:50], wo[:50]), 1.0)
+    np.testing.assert_allclose(GlintTexture(0.0, 5e-4, np.radians(2), 9)(x[:50], y[:50], wi[:50], wo[:50]), 1.0,
+                               rtol=1e-15, atol=0)
 
 
 def test_glint_roi_means_decorrelate_with_half_vector_separation():
@@ -341,7 +329,7 @@ def test_texture_is_seeded_continuous_and_path_independent():
     dense = texture(x, y)                                              # tabulated lattice block
     sparse = texture(x.ravel()[::997], y.ravel()[::997])               # per-point hashing
     np.testing.assert_allclose(sparse, dense.ravel()[::997], rtol=1e-12)
-    np.testing.assert_array_equal(dense, ValueNoiseTexture(0.1, 1e-3, seed=3)(x, y))
+    np.testing.assert_allclose(dense, ValueNoiseTexture(0.1, 1e-3, seed=3)(x, y), rtol=1e-15, atol=0)
     assert not np.allclose(dense, ValueNoiseTexture(0.1, 1e-3, seed=4)(x, y))
     assert np.abs(texture(x + 1e-7, y) - dense).max() < 1e-3
-    np.testing.assert_array_equal(ValueNoiseTexture(0.0, 1e-3, 3)(x, y), 1.0)
+    np.testing.assert_allclose(ValueNoiseTexture(0.0, 1e-3, 3)(x, y), 1.0, rtol=1e-15, atol=0)
