@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -20,7 +21,7 @@ from rig.runner import ProgressCallback, Runner
 
 
 def manifest_for(campaign: Campaign, campaign_path: Path | None, rig: RigConfig) -> dict:
-    """The manifest a new dataset starts with (dataset.md: campaign, sample, rig, software, truth)."""
+    """The manifest a new dataset starts with (docs/dataset.md: campaign, sample, rig, software, truth)."""
     manifest = {
         "campaign": {"name": campaign.name, "file": str(campaign_path) if campaign_path else None,
                      "sha256": campaign_sha256(campaign_path) if campaign_path else None,
@@ -45,23 +46,63 @@ class RunOutcome:
     error: str | None = None
 
 
+class SignalRequests:
+    """Ctrl+C and SIGTERM as flags for the runner, kept until there is one (the rig may still be connecting).
+
+    Handlers only set flags and write one line to the terminal with os.write (no Python I/O,
+    no device I/O, no exception): whatever the main thread is doing when a signal lands,
+    the handler cannot tear it, and the runner's exit path runs to its end.
+    """
+
+    def __init__(self) -> None:
+        self.runner: Runner | None = None
+        self.stop: str | None = None
+        self.abort: str | None = None
+
+    def attach(self, runner: Runner) -> None:
+        self.runner = runner
+        self._forward()
+
+    def _forward(self) -> None:
+        if self.runner is not None:
+            if self.stop:
+                self.runner.request_stop(self.stop)
+            if self.abort:
+                self.runner.request_abort(self.abort)
+
+    def on_sigint(self, signum: int, frame: object) -> None:
+        """First Ctrl+C: finish the point, park, lamp off. Again: stop the axes now."""
+        if self.stop is None:
+            self.stop = "Ctrl+C"
+            _say("stopping after the point in flight: park, lamp off (Ctrl+C again: stop the axes now)")
+        elif self.abort is None:
+            self.abort = "Ctrl+C again"
+            _say("stopping the axes now, lamp off")
+        self._forward()
+
+    def on_sigterm(self, signum: int, frame: object) -> None:
+        if self.abort is None:
+            self.abort = "SIGTERM"
+            _say("SIGTERM: stopping the axes now, lamp off")
+        self._forward()
+
+
+def _say(message: str) -> None:
+    """One line on stderr from a signal handler: a raw write, never re-entering a Python stream."""
+    try:
+        os.write(2, f"\nrig: {message}\n".encode())
+    except OSError:      # no terminal to tell: the flags are what matters
+        pass
+
+
 @contextmanager
-def stop_on_signals(runner: Runner) -> Iterator[None]:
-    """First Ctrl+C: finish the point, park, lamp off. Second Ctrl+C or SIGTERM: stop the axes now."""
+def stop_on_signals(requests: SignalRequests) -> Iterator[None]:
+    """SIGINT and SIGTERM go to `requests` for the duration of the block (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def on_sigint(signum, frame):
-        if runner.stop_requested:
-            raise KeyboardInterrupt
-        runner.request_stop("Ctrl+C (again to stop the axes now)")
-
-    def on_sigterm(signum, frame):
-        raise KeyboardInterrupt
-
-    saved = {sig: signal.signal(sig, handler) for sig, handler in ((signal.SIGINT, on_sigint),
-                                                                    (signal.SIGTERM, on_sigterm))}
+    saved = {sig: signal.signal(sig, handler) for sig, handler in ((signal.SIGINT, requests.on_sigint),
+                                                                    (signal.SIGTERM, requests.on_sigterm))}
     try:
         yield
     finally:
@@ -78,6 +119,15 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     Device and other failures do not raise: they end as status `failed` with the
     completed points kept; the runner has already made the rig safe.
     """
+    requests = SignalRequests()
+    with stop_on_signals(requests) if handle_signals else nullcontext():
+        return _execute(campaign, campaign_path, rig, plan, out, progress, writer, done_rows, requests)
+
+
+def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
+             progress: ProgressCallback | None, writer: DatasetWriter | None, done_rows: Sequence[dict],
+             requests: SignalRequests) -> RunOutcome:
+    """`execute` with the signals already routed to `requests`."""
     if writer is None:
         writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
         writer.write_skipped(plan.skipped)
@@ -87,11 +137,14 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     try:
         with open_rig(rig, truth.model if truth else None, truth.params if truth else None) as devices:
             runner = Runner(campaign, plan, devices, writer, rig, progress=progress, done_rows=done_rows)
-            with stop_on_signals(runner) if handle_signals else nullcontext():
-                status = runner.run()
+            requests.attach(runner)
+            status = runner.run()
         error = None
-    except KeyboardInterrupt:    # a second Ctrl+C while parking; the runner made the rig safe
+    except KeyboardInterrupt:    # signals not handled here (handle_signals=False): Python's default Ctrl+C
         status, error = "interrupted", None
+        if runner is None:       # before the run: nothing was switched on; say how it ended
+            writer.event("interrupted", graceful=False)
+            writer.update_manifest(status="interrupted")
     except Exception as exc:
         status, error = "failed", f"{exc}"
         if runner is None:       # the rig never came up, so no runner recorded the failure

@@ -9,30 +9,42 @@ Drift correction needs the E⊥ reading *after* a point, so with
 `illuminance.correction: interpolate` a measured point is first written ahead
 to events.jsonl (`point_pending`, fsync'ed: nothing is lost if the process
 dies) and appended to brdf.csv once the next reading brackets it.
+
+Stopping. The operator's requests arrive as flags (`request_stop`, `request_abort`;
+set from a signal handler or another thread, never doing I/O there). A graceful stop
+is honoured by every wait of the engine, which sleeps in slices of at most
+STOP_CHECK_S of rig time, and between points, never inside one: the point in flight
+is finished, a closing E⊥ reading brackets the points waiting for one, the axes park.
+An abort (stop the axes now) is honoured by any sleep of the clock, even inside a
+move. Either way the exit path makes the rig safe first, and nothing can interrupt it.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass, replace
 from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 
-from drivers.interfaces import DeviceError, RigDevices
+from drivers.interfaces import DeviceError, IlluminanceReading, RigDevices
 from rig import geometry as geo
 from rig.budget import BUDGET_COLUMNS, campaign_budget
 from rig.campaign import Campaign
-from rig.capture import CaptureSettings, DarkFrameCache, PointCapture, acquire_point, reduce_point
+from rig.capture import DarkFrameCache, PointCapture, acquire_point, reduce_point
 from rig.collisions import path_crosses, zones_of
 from rig.dataset import DatasetWriter, utc_now
 from rig.illuminance import IlluminanceEstimate, ReadingSchedule, estimate, interpolate
-from rig.images import write_luminance_exr
 from rig.optics import CameraOptics, roi_inside_spot
+from rig.ordering import travel_time_s
 from rig.pipeline import brdf_from_luminance
 from rig.plan import Plan, PlannedPoint, move_time_s
 from rig.rigconfig import RigConfig
+
+#: Nominal capture time per point for plan estimates (`rig plan`, the ETA): probe, one main
+#: exposure, readouts. The ETA corrects it by the rig time the points actually take.
+NOMINAL_CAPTURE_S = 0.05
 
 
 @dataclass
@@ -41,6 +53,9 @@ class Progress:
     total: int
     rig_time_s: float
     message: str = ""
+    #: Estimated rig time to measure the points left (s): the plan's estimate, scaled by
+    #: measured / estimated rig time of the points done so far (warm-up and pauses excluded).
+    eta_rig_s: float | None = None
 
 
 ProgressCallback = Callable[[Progress], None]
@@ -52,7 +67,15 @@ class CollisionError(RuntimeError):
 
 
 class StopRequested(Exception):
-    """A graceful stop (first Ctrl+C): raised between points, never inside one."""
+    """A graceful stop (first Ctrl+C): raised by a wait of the engine or between points, never inside one."""
+
+
+class AbortRequested(BaseException):
+    """Stop the axes now (second Ctrl+C, SIGTERM): raised by any sleep of the rig clock or between points.
+
+    A BaseException like KeyboardInterrupt, so that no `except Exception` on its way (a driver's
+    retry, a suspender's probe) takes it for a device fault.
+    """
 
 
 @dataclass(frozen=True)
@@ -68,27 +91,22 @@ class Measurement:
     rig_time_s: float
 
 
-def capture_settings(campaign: Campaign) -> CaptureSettings:
-    c = campaign.capture
-    return CaptureSettings(roi_px=c.roi_px, probe_exposure_s=c.probe_exposure_s,
-                           target_fraction=c.target_fraction, bracket_stops=c.bracket_stops,
-                           max_exposures=c.max_exposures, frames_per_exposure=c.frames_per_exposure,
-                           min_snr=c.min_snr, full_frame=c.save_images, mode=c.mode, target_snr=c.target_snr,
-                           max_frames=c.max_frames, bracket_count=c.bracket_count,
-                           bracket_step_stops=c.bracket_step_stops, dark_max_age_s=c.dark_max_age_s)
-
-
 class Runner:
     """Runs one campaign; `run()` returns the final status (complete/interrupted/failed)."""
 
     #: Moves may take this much longer than predicted before the axis counts as stuck.
     MOVE_TIMEOUT_FACTOR = 2.0
     MOVE_TIMEOUT_MARGIN_S = 10.0
-    #: Lamp current below this fraction of the setpoint stops the run (burn-out, open circuit).
+    #: Lamp current below this fraction of the setpoint: the pause names a burn-out or an open circuit.
     LAMP_CURRENT_MIN_FRACTION = 0.5
 
     #: Where the axes go after a graceful stop (home).
     PARK_DEG = (0.0, 0.0, 0.0, 0.0)
+    #: Longest rig time (s) between two looks at the stop request while the engine waits.
+    STOP_CHECK_S = 1.0
+    #: A point discarded for an E⊥ jump is re-taken at most this many times; one more jump
+    #: fails the run (a drift limit the lamp and meter cannot meet would re-take for ever).
+    MAX_RETAKES = 3
 
     def __init__(self, campaign: Campaign, plan: Plan, devices: RigDevices, writer: DatasetWriter,
                  rig: RigConfig, progress: ProgressCallback | None = None, done_rows: Sequence[dict] = ()):
@@ -99,7 +117,7 @@ class Runner:
         self.writer = writer
         self.rig = rig
         self.progress = progress or (lambda p: None)
-        self.settings = capture_settings(campaign)
+        self.settings = campaign.capture.settings()
         self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure, clock=devices.clock)
         self.optics = CameraOptics.from_config(rig)
         ill = campaign.illuminance
@@ -109,14 +127,24 @@ class Runner:
         self.rows: list[dict] = list(done_rows)     # written rows, for the campaign budget
         self.done_ids = {r["point_id"] for r in done_rows}
         self.measured = len(done_rows)
-        self.stop_requested = False
+        self.stop_reason: str | None = None        # set by request_stop: finish the point, park
+        self.abort_reason: str | None = None       # set by request_abort: stop the axes now
+        self._stop_logged = False
         self.pending: list[Measurement] = []       # waiting for the next E⊥ reading
         self.reading: IlluminanceEstimate | None = None
         self._points_since_reading = 0
         self.lamp_ref_v: float | None = None       # lamp voltage when warm: the voltage suspender's reference
         self.moving_to: tuple[float, ...] | None = None   # target of a move started and not yet waited for
+        self._discards: Counter[str] = Counter()   # E⊥-jump discards per point id
+        # ETA: plan estimate per point, corrected by measured / estimated rig time of the points done
+        self._estimate_s: dict[str, float] = {}
+        self._left_estimate_s = self._done_estimate_s = 0.0
+        self._active_s = 0.0                       # rig time measuring, without warm-up and pauses
+        self._active_since: float | None = None    # rig time the present stretch of measuring began
         devices.route_events(self._device_event)
         self.position = tuple(self._read_back())
+        self._estimate_s = self._point_estimates_s()
+        self._left_estimate_s = sum(t for pid, t in self._estimate_s.items() if pid not in self.done_ids)
 
     # -- helpers -----------------------------------------------------------------------------
     def _device_event(self, kind: str, **fields) -> None:
@@ -131,7 +159,72 @@ class Runner:
         return [*self.dev.stage.positions_deg(), *self.dev.arm.positions_deg()]
 
     def _report(self, message: str = "") -> None:
-        self.progress(Progress(self.measured, len(self.plan.points), self.rig_time(), message))
+        self.progress(Progress(self.measured, len(self.plan.points), self.rig_time(), message, self.eta_rig_s()))
+
+    def _point_estimates_s(self) -> dict[str, float]:
+        """The plan's rig time of each point: the move from its predecessor in plan order (the
+        first: from where the axes are) plus the nominal capture."""
+        path = np.array([self.position, *(p.motors_deg for p in self.plan.points)], float)
+        moves = travel_time_s(self.rig.axes, path[:-1], path[1:])
+        return {p.point_id: float(t) + NOMINAL_CAPTURE_S for p, t in zip(self.plan.points, moves)}
+
+    def _measuring(self, active: bool) -> None:
+        """Start (True) or end (False) a stretch of rig time that counts as measuring for the ETA."""
+        now = self.rig_time()
+        if self._active_since is not None:
+            self._active_s += now - self._active_since
+        self._active_since = now if active else None
+
+    def eta_rig_s(self) -> float:
+        """Rig time (s) the points left will take: their plan estimate × (measured / estimated) so far.
+
+        Warm-up and pauses are not measuring time, so they do not inflate the rate; E⊥ readings,
+        darks and retries between points do, as they will recur.
+        """
+        active = self._active_s + (self.rig_time() - self._active_since if self._active_since is not None else 0.0)
+        rate = active / self._done_estimate_s if self._done_estimate_s > 0 and active > 0 else 1.0
+        return self._left_estimate_s * rate
+
+    # -- stopping ----------------------------------------------------------------------------
+    def request_stop(self, reason: str) -> None:
+        """Finish the point in flight, park, lamp off. Only sets a flag: safe from a signal handler or thread."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+
+    def request_abort(self, reason: str) -> None:
+        """Stop the axes now, lamp off. Only sets a flag: safe from a signal handler or thread."""
+        if self.abort_reason is None:
+            self.abort_reason = reason
+
+    @property
+    def stop_requested(self) -> bool:
+        return self.stop_reason is not None
+
+    def _check_abort(self) -> None:
+        """The clock's sleep check: an abort ends any sleep, even a move's."""
+        if self.abort_reason is not None:
+            raise AbortRequested(self.abort_reason)
+
+    def _check_stop(self) -> None:
+        """Raise AbortRequested or StopRequested if asked; the stop is logged when first honoured."""
+        self._check_abort()
+        if self.stop_reason is None:
+            return
+        if not self._stop_logged:
+            self._stop_logged = True
+            self.writer.event("stop_requested", reason=self.stop_reason, rig_time_s=self.rig_time())
+            self._report(f"stopping: {self.stop_reason}")
+        raise StopRequested(self.stop_reason)
+
+    def _wait(self, seconds: float) -> None:
+        """Let `seconds` of rig time pass, looking at the stop request at least every STOP_CHECK_S."""
+        left = seconds
+        self._check_stop()
+        while left > 0:
+            step = min(left, self.STOP_CHECK_S)
+            self.dev.clock.sleep(step)
+            left -= step
+            self._check_stop()
 
     def _start_move(self, target: tuple[float, float, float, float]) -> None:
         """Start all four axes together toward `target`, never through a forbidden zone.
@@ -174,10 +267,10 @@ class Runner:
         self.writer.event("lamp_on", current_a=lamp.measure_current_a(), voltage_v=lamp.measure_voltage_v(),
                           rig_time_s=start)
         self._report("lamp warm-up")
-        self.dev.clock.sleep(cfg.warmup_min_s)
+        self._wait(cfg.warmup_min_s)
         previous = self.dev.meter.read().illuminance_lx
         while True:
-            self.dev.clock.sleep(cfg.warmup_check_s)
+            self._wait(cfg.warmup_check_s)
             now = self.dev.meter.read().illuminance_lx
             change = abs(now - previous) / max(abs(now), 1e-300)
             elapsed = self.rig_time() - start
@@ -196,7 +289,8 @@ class Runner:
         wanted = self.rig.lamp.current_a
         if abs(current - wanted) > sus.lamp_current_tolerance_rel * wanted:
             return (f"lamp current {current:.3f} A at {self.dev.lamp.measure_voltage_v():.2f} V with {wanted:.3f} A "
-                    "set" + (": lamp burnt out or circuit open" if current < 0.5 * wanted else ""))
+                    "set" + (": lamp burnt out or circuit open"
+                             if current < self.LAMP_CURRENT_MIN_FRACTION * wanted else ""))
         voltage = self.dev.lamp.measure_voltage_v()
         if self.lamp_ref_v and abs(voltage - self.lamp_ref_v) > sus.lamp_voltage_tolerance_rel * self.lamp_ref_v:
             return f"lamp voltage {voltage:.3f} V, {self.lamp_ref_v:.3f} V after warm-up"
@@ -220,27 +314,31 @@ class Runner:
     def _suspend(self, device: str, reason: str, problem: Callable[[], str | None], *, rewarm: bool = False) -> None:
         """Pause until `problem()` clears (checked every check_interval_s), or stop after max_wait_s.
 
+        `max_wait_s` bounds the rig time of the whole pause, the checks' own time included.
         Points waiting for E⊥ keep the last good reading; the caller re-takes the affected points.
         """
         sus = self.campaign.suspenders
+        self._measuring(False)
         if self.pending:
             self._write_pending(self.reading, None)
         self.writer.event("suspended", device=device, reason=reason, rig_time_s=self.rig_time())
         self._report(f"PAUSED ({device}): {reason}")
-        waited = 0.0
+        start = self.rig_time()
         while (still := problem()) is not None:
+            waited = self.rig_time() - start
             if waited >= sus.max_wait_s:
                 self.writer.event("suspend_timeout", device=device, reason=still, waited_s=waited,
                                   rig_time_s=self.rig_time())
                 raise DeviceError(device, f"paused {waited:.0f} s and still: {still}")
-            self.dev.clock.sleep(sus.check_interval_s)
-            waited += sus.check_interval_s
-            self._report(f"PAUSED ({device}) {waited:.0f} s: {still}")
+            self._wait(min(sus.check_interval_s, sus.max_wait_s - waited))
+            self._report(f"PAUSED ({device}) {self.rig_time() - start:.0f} s: {still}")
+        waited = self.rig_time() - start
         self.writer.event("resumed", device=device, waited_s=waited, rig_time_s=self.rig_time())
         self._report(f"resumed after {waited:.0f} s ({device})")
         if rewarm:
             self._warm_up()
         self.reading = None            # the next E⊥ reading starts afresh: nothing to interpolate across a pause
+        self._measuring(True)
 
     def _answering(self, action: Callable[[], T]) -> T:
         """Run a device exchange; while a device stops answering, pause for it, then try again."""
@@ -252,8 +350,12 @@ class Runner:
                     raise
                 self._suspend(exc.device, str(exc), self._probe(exc.device))
 
-    def _read_illuminance(self) -> IlluminanceEstimate:
-        readings = self._answering(lambda: [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)])
+    def _read_illuminance(self, *, pause: bool = True) -> IlluminanceEstimate:
+        """E⊥ from `illuminance.readings` meter readings; a meter that stops answering pauses the
+        run (`pause`) or raises its DeviceError."""
+        def take() -> list[IlluminanceReading]:
+            return [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
+        readings = self._answering(take) if pause else take()
         values = np.array([r.illuminance_lx for r in readings])
         if not values.mean() > 0:
             raise DeviceError("meter", f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
@@ -273,13 +375,9 @@ class Runner:
         """
         est = self._read_illuminance()
         before = self.reading
-        limit = self.campaign.suspenders.illuminance_drift_limit_rel
-        if before is not None and abs(est.value_lx - before.value_lx) > limit * before.value_lx:
-            retake = [m.point for m in self.pending]
-            self.pending.clear()
-            self.measured -= len(retake)
-            self.writer.event("points_discarded", point_ids=[p.point_id for p in retake],
-                              reason="illuminance jump", rig_time_s=self.rig_time())
+        if self._jumped(before, est):
+            retake = self._discard_pending(len(self.pending), "illuminance jump")
+            self._limit_retakes(retake, before, est)
             reason = f"E⊥ {est.value_lx:.1f} lx, {before.value_lx:.1f} lx at the previous reading"
             self._suspend("illuminance", reason, self._illuminance_unsteady)
             est = self._read_illuminance()
@@ -291,10 +389,48 @@ class Runner:
         self._points_since_reading = 0
         return retake
 
+    def _jumped(self, before: IlluminanceEstimate | None, after: IlluminanceEstimate) -> bool:
+        """E⊥ changed beyond `suspenders.illuminance_drift_limit_rel` since the previous reading."""
+        limit = self.campaign.suspenders.illuminance_drift_limit_rel
+        return before is not None and abs(after.value_lx - before.value_lx) > limit * before.value_lx
+
+    def _discard_pending(self, n: int, reason: str) -> list[PlannedPoint]:
+        """Discard the last `n` points waiting for E⊥ (they are measured again); returns their points."""
+        dropped = self.pending[len(self.pending) - n:]
+        del self.pending[len(self.pending) - n:]
+        points = [m.point for m in dropped]
+        if points:
+            self.measured -= len(points)
+            self._left_estimate_s += sum(self._estimate_s[p.point_id] for p in points)
+            self.writer.event("points_discarded", point_ids=[p.point_id for p in points], reason=reason,
+                              rig_time_s=self.rig_time())
+        return points
+
+    def _limit_retakes(self, discarded: list[PlannedPoint], before: IlluminanceEstimate,
+                       after: IlluminanceEstimate) -> None:
+        """Fail the run once a point has been discarded for an E⊥ jump more than MAX_RETAKES times.
+
+        Failing, not measuring on with flagged points: a limit the lamp and meter cannot meet
+        would discard every batch again, for hours of lamp life, and the points it keeps would
+        not meet the operator's stated limit. The completed points are kept; after raising the
+        limit (or fixing the lamp) `--resume` measures the rest.
+        """
+        self._discards.update(p.point_id for p in discarded)
+        worst = max(discarded, key=lambda p: self._discards[p.point_id], default=None)
+        if worst is None or self._discards[worst.point_id] <= self.MAX_RETAKES:
+            return
+        limit = self.campaign.suspenders.illuminance_drift_limit_rel
+        change = abs(after.value_lx - before.value_lx) / before.value_lx
+        raise DeviceError("illuminance", (
+            f"point {worst.point_id} discarded {self._discards[worst.point_id]} times for an E⊥ jump beyond "
+            f"suspenders.illuminance_drift_limit_rel = {limit:g} (last change {change:.2g}, meter repeatability "
+            f"{self.rig.meter.repeatability_rel:g}); raise the limit above the lamp's drift between readings, "
+            "or check the lamp, then continue with --resume"))
+
     def _illuminance_unsteady(self) -> str | None:
         """Two meter readings a check interval apart differ by more than the warm-up criterion."""
         first = self.dev.meter.read().illuminance_lx
-        self.dev.clock.sleep(self.campaign.lamp.warmup_check_s)
+        self._wait(self.campaign.lamp.warmup_check_s)
         second = self.dev.meter.read().illuminance_lx
         change = abs(second - first) / max(abs(second), 1e-300)
         if change >= self.campaign.lamp.warmup_stable_rel or not second > 0:
@@ -334,7 +470,7 @@ class Runner:
             flags.append("roi_unlit")
         measurement = Measurement(point, motors, angles, cap, tuple(flags), time_utc, rig_time)
         if cap.image_cd_m2 is not None:
-            write_luminance_exr(self.writer.image_path(point.point_id), cap.image_cd_m2, {
+            self.writer.write_image(point.point_id, cap.image_cd_m2, {
                 "point_id": point.point_id, "theta_i_deg": float(angles.theta_i_deg),
                 "phi_i_deg": float(angles.phi_i_deg), "theta_o_deg": float(angles.theta_o_deg),
                 "phi_o_deg": float(angles.phi_o_deg), "exposures_s": list(cap.exposures_s),
@@ -378,11 +514,7 @@ class Runner:
         """Measure one point under the suspenders; returns the points to (re-)take before going on."""
         problem = self._answering(self._lamp_problem)
         if problem is not None:
-            retake = [self.pending.pop().point] if self.pending else []     # lit while the lamp failed?
-            if retake:
-                self.measured -= 1
-                self.writer.event("points_discarded", point_ids=[retake[0].point_id], reason="lamp",
-                                  rig_time_s=self.rig_time())
+            retake = self._discard_pending(min(1, len(self.pending)), "lamp")     # lit while the lamp failed?
             self._suspend("lamp", problem, self._lamp_problem, rewarm=True)
             return retake + [point]
         try:
@@ -401,6 +533,8 @@ class Runner:
             m = replace(m, flags=m.flags + ("retried",))
         self.measured += 1
         self._points_since_reading += 1
+        self._done_estimate_s += self._estimate_s[point.point_id]
+        self._left_estimate_s -= self._estimate_s[point.point_id]
         if self.interpolate:
             self.pending.append(m)
             # written ahead, so a crash before the next reading loses nothing
@@ -410,12 +544,6 @@ class Runner:
         return []
 
     # -- the run -----------------------------------------------------------------------------
-    def request_stop(self, reason: str) -> None:
-        """Finish the point in flight, then stop cleanly (called from a signal handler)."""
-        self.stop_requested = True
-        self.writer.event("stop_requested", reason=reason, rig_time_s=self.rig_time())
-        self._report(f"stopping after this point: {reason}")
-
     def _park(self) -> None:
         self._report("parking")
         try:
@@ -425,12 +553,34 @@ class Runner:
             return
         self.writer.event("parked", position_deg=list(self.PARK_DEG), rig_time_s=self.rig_time())
 
+    def _closing_reading(self) -> None:
+        """After a graceful stop: one E⊥ reading brackets the points waiting for one; nothing waits.
+
+        No point waits during the warm-up or a pause (a pause writes them first), so then
+        there is no reading to take. A meter that does not answer leaves them with the last
+        E⊥ (the exit path writes them); a jump beyond the drift limit discards them, so that
+        `--resume` measures them again.
+        """
+        if not self.pending:
+            return
+        try:
+            est = self._read_illuminance(pause=False)
+        except DeviceError as exc:
+            self.writer.event("closing_reading_failed", error=str(exc), rig_time_s=self.rig_time())
+            return
+        if self._jumped(self.reading, est):
+            self._discard_pending(len(self.pending), "illuminance jump")
+        else:
+            self._write_pending(self.reading, est)
+
     def _measure_all(self) -> None:
         """Points in plan order, each series contiguous; re-takes go to the front of the queue."""
         series_of = {s.index: s for s in self.plan.series}
         queue = deque(p for p in self.plan.points if p.point_id not in self.done_ids)
         previous_series = None
+        self._measuring(True)
         while queue:
+            self._check_stop()
             point = queue[0]
             new_series = point.series != previous_series
             if new_series:
@@ -447,37 +597,53 @@ class Runner:
                 continue
             s = series_of[point.series]
             self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
-            if self.stop_requested:
-                raise StopRequested
             if not queue and self.reading is not None:
                 queue.extend(self._new_reading())   # closing reading; re-takes if the lamp jumped
+        self._measuring(False)
 
     def run(self) -> str:
-        status, error = "failed", None
+        """Warm up, measure, and end `complete`, `interrupted` or `failed` (then the error is re-raised).
+
+        From the first statement of the exit path on, no request can raise: the clock's sleep
+        check is removed before the rig is made safe, and the flags are not looked at again.
+        """
+        status, error, graceful = "failed", None, False
+        self.dev.clock.sleep_check = self._check_abort
         try:
-            self._log_identities()
-            self._warm_up()
-            self._measure_all()
-            status = "complete"
-        except StopRequested:
-            status = "interrupted"
-            self.writer.event("interrupted", graceful=True, rig_time_s=self.rig_time(), measured=self.measured)
-            if self.reading is not None:
-                self._new_reading()          # brackets the points since the last reading (a jump: kept unbracketed)
-            self._park()
-        except KeyboardInterrupt:
-            status = "interrupted"
-            self.writer.event("interrupted", rig_time_s=self.rig_time(), measured=self.measured)
+            try:
+                self._check_stop()            # asked before the run began: do not even switch the lamp on
+                self._log_identities()
+                self._warm_up()
+                self._measure_all()
+                status = "complete"
+            except StopRequested:
+                status, graceful = "interrupted", True
+                self._closing_reading()
+                self._park()
+        except (AbortRequested, KeyboardInterrupt):
+            status, graceful = "interrupted", False
         except Exception as exc:
             error = f"{type(exc).__name__}: {exc}"
-            self.writer.event("failed", error=error, rig_time_s=self.rig_time(), measured=self.measured)
             raise
         finally:
+            self.dev.clock.sleep_check = None
+            problems = self.dev.safe_state()          # first and always: lamp off, axes stopped
+            self._record_exit(status, error, graceful, problems)
+        return status
+
+    def _record_exit(self, status: str, error: str | None, graceful: bool, problems: list[str]) -> None:
+        """Events and manifest of how the run ended; written after the rig is safe."""
+        try:
+            if status == "interrupted":
+                self.writer.event("interrupted", graceful=graceful, reason=self.abort_reason or self.stop_reason,
+                                  rig_time_s=self.rig_time(), measured=self.measured)
+            elif status == "failed":
+                self.writer.event("failed", error=error, rig_time_s=self.rig_time(), measured=self.measured)
             if self.pending:     # no closing reading: keep the points with the last E⊥, uncorrected
                 self.writer.event("pending_without_closing_reading", points=len(self.pending),
                                   rig_time_s=self.rig_time())
                 self._write_pending(self.reading, None)
-            problems = self.dev.safe_state()
+        finally:
             self.writer.event("safe_state", lamp_off=not any(p.startswith("lamp") for p in problems),
                               problems=problems, rig_time_s=self.rig_time())
             self.writer.update_manifest(
@@ -487,4 +653,3 @@ class Runner:
                         "not_measured": len(self.plan.points) - self.measured},
                 uncertainty_budget=campaign_budget(self.rows, BUDGET_COLUMNS),
                 **({"error": error} if error else {}))
-        return status

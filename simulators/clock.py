@@ -1,18 +1,57 @@
-"""Simulated rig clock: moves and exposures cost rig time, never wall time."""
+"""Simulated rig clock: moves and exposures cost rig time, never wall time (unless paced).
+
+A paced clock also lets wall time pass, `pace` wall seconds per rig second, so that
+something outside the run (a Ctrl+C, a test's thread) can act while the run is in a
+long wait such as the lamp warm-up. `rig run` on the simulated rig takes the pace from
+the environment variable RIG_SIM_PACE (default 0: as fast as possible); e.g.
+`RIG_SIM_PACE=0.01` makes the 300 s warm-up last 3 s.
+"""
 
 from __future__ import annotations
 
+import math
+import os
 import threading
+import time
 
 from drivers.interfaces import Clock
 
+#: Environment variable with the default pace of new SimClocks (wall seconds per rig second).
+PACE_ENV = "RIG_SIM_PACE"
+
+
+def pace_from_env() -> float:
+    """The pace RIG_SIM_PACE asks for (0 when unset); ValueError naming the variable when it is not ≥ 0."""
+    text = os.environ.get(PACE_ENV, "").strip()
+    if not text:
+        return 0.0
+    try:
+        pace = float(text)
+    except ValueError:
+        pace = math.nan
+    if not (math.isfinite(pace) and pace >= 0):
+        raise ValueError(f"environment variable {PACE_ENV}={text!r}: must be a number ≥ 0 "
+                         "(wall seconds per simulated rig second)")
+    return pace
+
 
 class SimClock(Clock):
-    """A monotonic clock advanced only by `sleep`; thread-safe."""
+    """A monotonic clock advanced only by `sleep`; thread-safe.
 
-    def __init__(self, start_s: float = 0.0):
+    With `pace` > 0 a sleep also waits `pace` × its rig time of wall time, in slices of
+    at most CHECK_SLICE_S, and rig time advances slice by slice. Sleeps keep wall time in
+    step with rig time, so the many tiny sleeps of exchanges and exposures cost no extra
+    wall time for their number; wall time spent computing (more than one slice behind)
+    is not made up by rushing rig time. `pace` None: from RIG_SIM_PACE.
+    """
+
+    def __init__(self, start_s: float = 0.0, pace: float | None = None):
         self._t = float(start_s)
         self._lock = threading.Lock()
+        self.pace = pace_from_env() if pace is None else pace
+        if not (math.isfinite(self.pace) and self.pace >= 0):
+            raise ValueError(f"SimClock pace must be a number ≥ 0, got {self.pace}")
+        self._wall0, self._t0 = time.monotonic(), self._t
 
     def now(self) -> float:
         with self._lock:
@@ -21,5 +60,20 @@ class SimClock(Clock):
     def sleep(self, seconds: float) -> None:
         if seconds < 0:
             raise ValueError(f"cannot sleep a negative time ({seconds} s)")
-        with self._lock:
-            self._t += seconds
+        self._check()
+        if self.pace == 0:
+            with self._lock:
+                self._t += seconds
+            return
+        left = seconds
+        while left > 0:
+            step = min(left, self.CHECK_SLICE_S / self.pace)
+            with self._lock:
+                self._t += step
+                delay = self._wall0 + (self._t - self._t0) * self.pace - time.monotonic()
+                if delay < -self.CHECK_SLICE_S:     # wall time went on computing: do not race to catch up
+                    self._wall0, self._t0, delay = time.monotonic(), self._t, 0.0
+            left -= step
+            if delay > 0:
+                time.sleep(delay)
+            self._check()
