@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import importlib
+import inspect
+from pathlib import Path
 
 from drivers.delta_sm import DeltaSM
 from drivers.interfaces import Clock, DeviceError, LuminanceCamera, RigDevices, TwoAxisPositioner
 from drivers.modbus_axis import ModbusAxisController
 from drivers.p9710 import P9710
-from rig.rigconfig import CameraDevice, PositionerDevice, RigConfig
+from rig.configfile import clip
+from rig.rigconfig import POSITIONER_AXES, CameraConfig, CameraDevice, PositionerDevice, RigConfig, RigConfigError
 
-#: Axis names of each positioner, in controller axis order.
-POSITIONER_AXES = {"arm": ("arm_azimuth", "arm_polar"), "stage": ("stage_vertical", "stage_normal")}
+__all__ = ["POSITIONER_AXES", "camera_class", "check_devices", "connect_devices", "vendor_camera"]
 
 
 def _positioner(config: RigConfig, which: str, dev: PositionerDevice, clock: Clock) -> TwoAxisPositioner:
@@ -30,22 +32,75 @@ def _positioner(config: RigConfig, which: str, dev: PositionerDevice, clock: Clo
     return TwoAxisPositioner(which, *axes)
 
 
-def vendor_camera(config: RigConfig, dev: CameraDevice) -> LuminanceCamera:
-    """Import `python:package.module:Class` and build it with the camera section and options."""
+def camera_class(dev: CameraDevice, camera: CameraConfig) -> type[LuminanceCamera]:
+    """The class named by `devices.camera.driver` (`python:package.module:Class`), checked to be one
+    rig can use: an importable, concrete LuminanceCamera whose constructor takes (camera config,
+    **options) with the rig file's options. RigConfigError (bad input) naming the key otherwise."""
+    where = f"key 'devices.camera.driver': {dev.driver!r}"
+    if dev.driver == "simulated":
+        raise RigConfigError("key 'devices.camera.driver': the simulated camera exists only on the simulated rig")
     module_name, class_name = dev.driver.removeprefix("python:").split(":")
     try:
         cls = getattr(importlib.import_module(module_name), class_name)
-    except (ImportError, AttributeError) as exc:
-        raise DeviceError("camera", f"cannot load camera driver {dev.driver!r}: {exc}") from None
-    return cls(config.camera, **dev.options)
+    except Exception as exc:        # ImportError, AttributeError, or whatever the module raises on import
+        raise RigConfigError(f"key 'devices.camera.driver': cannot load camera driver {dev.driver!r}: "
+                             f"{type(exc).__name__}: {clip(str(exc), 200)}") from None
+    if not (inspect.isclass(cls) and issubclass(cls, LuminanceCamera)):
+        raise RigConfigError(f"{where} is not a class implementing drivers.interfaces.LuminanceCamera")
+    if inspect.isabstract(cls):
+        missing = ", ".join(sorted(cls.__abstractmethods__))
+        raise RigConfigError(f"{where} does not implement {missing}")
+    try:
+        inspect.signature(cls).bind(camera, **dev.options)
+    except (TypeError, ValueError) as exc:
+        raise RigConfigError(f"{where}: its constructor does not take (camera_config, **options) with the options "
+                             f"{', '.join(dev.options) or '(none)'} of the rig file: {clip(str(exc), 200)}") from None
+    return cls
+
+
+def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
+    """What connecting to a hardware rig needs beyond the rig file's schema, checked before anything is
+    opened or written: real addresses and a usable camera plug-in (the simulated rig picks its own
+    addresses and brings its own camera). RigConfigError (bad input) naming `source` if not; `rig plan`
+    needs neither."""
+    if config.simulated:
+        return
+    try:
+        _check_addresses(config)
+        camera_class(config.devices.camera, config.camera)
+    except RigConfigError as exc:
+        raise RigConfigError(f"{source}: {exc}") from None
+
+
+def _check_addresses(config: RigConfig) -> None:
+    for name in ("arm", "stage", "lamp", "meter"):
+        if getattr(config.devices, name).address == "auto":
+            raise RigConfigError(f"key 'devices.{name}.address': address 'auto' only works on the simulated rig; "
+                                 "give the device's address")
+
+
+def vendor_camera(config: RigConfig, dev: CameraDevice) -> LuminanceCamera:
+    """Build the vendor camera with the camera section and options; any failure is a DeviceError."""
+    try:
+        cls = camera_class(dev, config.camera)
+    except RigConfigError as exc:
+        raise DeviceError("camera", str(exc)) from None
+    try:
+        return cls(config.camera, **dev.options)
+    except DeviceError:
+        raise
+    except Exception as exc:        # the vendor SDK's own exceptions: the camera did not start
+        raise DeviceError("camera", f"camera driver {dev.driver!r} failed to start: "
+                                    f"{type(exc).__name__}: {clip(str(exc), 200)}") from None
 
 
 def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | None = None) -> RigDevices:
-    """Open every device; on any failure close what was opened and re-raise."""
+    """Open every device; on any failure close what was opened and re-raise.
+
+    RigConfigError (bad input) before anything is opened if an address is `auto`; DeviceError if a
+    device does not answer as it should or the camera plug-in cannot be built."""
+    _check_addresses(config)
     d = config.devices
-    for name in ("arm", "stage", "lamp", "meter"):
-        if getattr(d, name).address == "auto":
-            raise DeviceError(name, "address 'auto' only works on the simulated rig; give the device's address")
     opened: list = []
     try:
         arm = _positioner(config, "arm", d.arm, clock)
@@ -58,8 +113,6 @@ def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | N
                       timeout_s=d.meter.timeout_s, integration_s=config.meter.integration_s)
         opened.append(meter)
         if camera is None:
-            if d.camera.driver == "simulated":
-                raise DeviceError("camera", "the simulated camera exists only on the simulated rig")
             camera = vendor_camera(config, d.camera)
         return RigDevices(arm=arm, stage=stage, lamp=lamp, meter=meter, camera=camera, clock=clock,
                           simulated=config.simulated)

@@ -44,7 +44,7 @@ def test_grazing_incidence_is_flagged_and_finite(tmp_path, theta_i):
     assert len(d) == 3
     assert_all_finite(d)
     assert np.all(d.has_flag("grazing_incidence") == (d["theta_i_deg"] >= 88.0))
-    # the angle term dominates the budget as cos θi → 0 (2 % per 0.1° at 85°, measurement.md)
+    # the angle term dominates the budget as cos θi → 0 (tan θi · u_θ: 2 % per 0.1° at 85°)
     u_angle = np.tan(np.radians(d["theta_i_deg"])) * np.radians(RigConfig().geometry.angle_u_deg)
     np.testing.assert_allclose(d["u_rel_angle"], u_angle, rtol=1e-9)
     assert np.all(d["u_brdf_per_sr"] / d["brdf_per_sr"] >= u_angle)
@@ -67,16 +67,17 @@ def test_grazing_views_leave_the_spot(tmp_path):
 
 
 def test_poles_and_phi_wrap(tmp_path):
-    d, plan = measure(tmp_path, [{"phi": 0, "theta": [0, 30]}, {"phi": 360, "theta": [30]}],
-                      [{"points": [[0, 123.0], [20, 0], [20, 360], [20, 359.9999]]}],
+    """Azimuths next to the wrap (φ = 360 itself is refused by the campaign schema: φ in [0, 360))."""
+    d, plan = measure(tmp_path, [{"phi": 0, "theta": [0, 30]}, {"phi": 359.9999, "theta": [30]}],
+                      [{"points": [[0, 123.0], [20, 0], [20, 359.9999]]}],
                       model="lambert", params={"kd": 0.5})
-    assert len(plan.series) == 2                  # φi = 360 is φi = 0
+    assert len(plan.series) == 3
     assert_all_finite(d)
     assert np.all((d["phi_o_deg"] >= 0) & (d["phi_o_deg"] < 360))
-    # φo = 0, 360 are one view; 359.9999 another; the pole view at θi = 0 is the occluded retro direction
-    assert len(d) == 5 and [s.reason for s in plan.skipped] == ["occluded_by_lamp"]
+    # the pole view at θi = 0 is the occluded retro direction; at θi = 30° it is measured in both series
+    assert len(d) == 8 and [s.reason for s in plan.skipped] == ["occluded_by_lamp"]
     at_pole = d["theta_o_deg"] < 0.01       # within encoder resolution of the pole: φo finite, whatever it is
-    assert at_pole.sum() == 1
+    assert at_pole.sum() == 2
     np.testing.assert_allclose(d["brdf_per_sr"], 0.5 / np.pi, rtol=0.03)
 
 

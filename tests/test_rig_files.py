@@ -45,7 +45,7 @@ def test_bad_rig_file(tmp_path, change, key, rule):
 
 
 def test_auto_address_needs_the_simulated_rig():
-    with pytest.raises(DeviceError, match="arm: address 'auto' only works on the simulated rig"):
+    with pytest.raises(RigConfigError, match="'devices.arm.address': address 'auto' only works on the simulated rig"):
         connect_devices(RigConfig(simulated=False), SimClock())
 
 
@@ -82,3 +82,162 @@ def test_rig_devices_bad_file(tmp_path, capsys):
 def test_run_with_rig_option(tmp_path):
     campaign = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
     assert main(["plan", str(campaign), "--rig", str(RIGS / "simulated.yaml")]) == 0
+
+
+# -- strict rig files (issue 9) ------------------------------------------------------------------
+@pytest.mark.parametrize("device, address", [
+    ("arm", "modbus-tcp://192.168.10.21"),            # no port
+    ("arm", "modbus-tcp://192.168.10.21:0"),
+    ("arm", "modbus-tcp://192.168.10.21:70000"),
+    ("arm", "modbus-tcp://:502"),
+    ("stage", "modbus-rtu:///dev/ttyUSB0?baud=9600"),  # unknown option
+    ("stage", "modbus-rtu:///dev/ttyUSB0?baudrate=fast"),
+    ("stage", "modbus-rtu://ttyUSB0"),
+    ("stage", "tcp://192.168.10.21:502"),
+    ("lamp", "socket://192.168.10.30"),
+    ("lamp", "telnet://192.168.10.30:23"),
+    ("meter", "ttyUSB1"),
+    ("meter", "/dev/tty USB1"),
+])
+def test_bad_addresses_are_refused(tmp_path, device, address):
+    f = tmp_path / "rig.yaml"
+    f.write_text(yaml.safe_dump({"simulated": False, "devices": {device: {"address": address}}}))
+    with pytest.raises(RigConfigError, match=f"'devices.{device}.address'"):
+        load_rig_config(f)
+
+
+@pytest.mark.parametrize("address", ["modbus-tcp://192.168.10.21:502", "modbus-tcp://[fe80::1]:1502",
+                                     "modbus-rtu:///dev/ttyUSB0?baudrate=19200&parity=E&stopbits=1",
+                                     "modbus-rtu://COM3", "modbus-rtu://socket://10.0.0.5:4001"])
+def test_good_positioner_addresses_load(tmp_path, address):
+    """What the rig file accepts, the driver can open (it does not connect until asked)."""
+    from drivers.modbus_axis import modbus_client
+
+    f = tmp_path / "rig.yaml"
+    f.write_text(yaml.safe_dump({"devices": {"arm": {"address": address}}}))
+    assert load_rig_config(f).devices.arm.address == address
+    modbus_client(address, 0.1).close()
+
+
+@pytest.mark.parametrize("text, key", [
+    ("axes: {arm_polar: {limits_deg: [-180, 180], speed_deg_s: .inf, accel_deg_s2: 30}}", "axes.arm_polar.speed_deg_s"),
+    ("axes: {arm_polar: {limits_deg: [-.inf, .inf], speed_deg_s: 15, accel_deg_s2: 30}}", "axes.arm_polar.limits_deg[0]"),
+    ("axes: {arm_polar: {limits_deg: [-180, 1e6], speed_deg_s: 15, accel_deg_s2: 30}}", "axes.arm_polar.limits_deg[1]"),
+    ("meter: {repeatability_rel: .nan}", "meter.repeatability_rel"),
+    ("camera: {min_exposure_s: 20, max_exposure_s: 15}", "camera"),
+    ("camera: {black_level_dn: 5000}", "camera"),
+    ("simulation: {seed: -1}", "simulation.seed"),
+    ("devices: {arm: {steps_per_degree: 1.0e6}}\naxes: {arm_azimuth: {limits_deg: [-180, 180], speed_deg_s: 15, "
+     "accel_deg_s2: 3000}}", "(top level)"),
+    ("devices: {arm: {timeout_s: 1e308}}", "devices.arm.timeout_s"),
+])
+def test_non_finite_and_insane_rig_values_are_refused(tmp_path, text, key):
+    f = tmp_path / "rig.yaml"
+    f.write_text(text + "\n")
+    with pytest.raises(RigConfigError) as err:
+        load_rig_config(f)
+    assert f"'{key}'" in str(err.value)
+
+
+PLUGIN = '''
+from drivers.interfaces import Frame, LuminanceCamera
+
+
+class Good(LuminanceCamera):
+    def __init__(self, config, **options):
+        self.sensor = config.sensor_info()
+        self.options = options
+
+    def identity(self):
+        return "good camera"
+
+    def capture(self, exposure_s, window=None):
+        raise NotImplementedError
+
+    def capture_dark(self, exposure_s, window=None):
+        raise NotImplementedError
+
+
+class NoOptions(Good):
+    def __init__(self, config):
+        super().__init__(config)
+
+
+class Explodes(Good):
+    def __init__(self, config, **options):
+        raise RuntimeError("SDK licence not found")
+
+
+class Abstract(LuminanceCamera):
+    def __init__(self, config, **options):
+        pass
+
+
+class NotACamera:
+    def __init__(self, config, **options):
+        pass
+
+
+not_a_class = 3
+'''
+
+
+@pytest.fixture
+def plugin(tmp_path, monkeypatch):
+    (tmp_path / "rigfuzzplugin.py").write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def config(cls: str, options: dict | None = None) -> RigConfig:
+        lab = load_rig_config(RIGS / "example-lab.yaml")
+        camera = lab.devices.camera.model_copy(update={"driver": f"python:rigfuzzplugin:{cls}",
+                                                       "options": options or {"server": "x"}})
+        return lab.model_copy(update={"devices": lab.devices.model_copy(update={"camera": camera})})
+    return config
+
+
+@pytest.mark.parametrize("cls, rule", [
+    ("NoOptions", "constructor does not take"), ("Abstract", "does not implement capture"),
+    ("NotACamera", "not a class implementing"), ("not_a_class", "not a class implementing"),
+    ("Missing", "cannot load camera driver"),
+])
+def test_camera_plugin_is_checked_before_connecting(plugin, cls, rule):
+    from drivers.factory import check_devices
+
+    with pytest.raises(RigConfigError, match=f"'devices.camera.driver'.*{rule}"):
+        check_devices(plugin(cls))
+
+
+def test_good_camera_plugin_passes_and_builds(plugin):
+    from drivers.factory import check_devices
+
+    cfg = plugin("Good")
+    check_devices(cfg)
+    camera = vendor_camera(cfg, cfg.devices.camera)
+    assert camera.identity() == "good camera" and camera.options == {"server": "x"}
+
+
+def test_camera_plugin_failing_to_start_is_a_device_error(plugin):
+    cfg = plugin("Explodes")
+    with pytest.raises(DeviceError, match="failed to start: RuntimeError: SDK licence not found"):
+        vendor_camera(cfg, cfg.devices.camera)
+
+
+def test_uninstalled_camera_plugin_is_bad_input_before_connecting():
+    from drivers.factory import check_devices
+
+    with pytest.raises(RigConfigError, match="cannot load camera driver 'python:mylab.lmk:LmkCamera'"):
+        check_devices(load_rig_config(RIGS / "example-lab.yaml"))
+    check_devices(RigConfig())      # the simulated rig brings its own camera
+
+
+@pytest.mark.parametrize("devices, key", [({}, "devices.arm.address"),
+                                          ({"arm": {"address": "modbus-tcp://10.0.0.1:502"},
+                                            "stage": {"address": "modbus-tcp://10.0.0.2:502"},
+                                            "lamp": {"address": "/dev/ttyUSB1"}, "meter": {"address": "COM4"}},
+                                           "devices.camera.driver")])
+def test_hardware_rig_without_addresses_or_camera_is_bad_input(devices, key):
+    from drivers.factory import check_devices
+
+    cfg = RigConfig.model_validate({"simulated": False, "devices": devices})
+    with pytest.raises(RigConfigError, match=f"'{key}'.*only .* the simulated rig"):
+        check_devices(cfg)
