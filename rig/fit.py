@@ -1,7 +1,7 @@
 """Fit a registry BRDF model to measured data: `fit`, `fit_dataset`, and the `rig fit` subcommand.
 
 Why it is built this way (Spieringhs et al. 2023 fitted with a genetic algorithm;
-their parameters span 1e-12 to 1.65e4, see shared/reference/seeds-digest.md):
+their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
 
 * every free parameter lives on the unit cube: log-uniform between its bounds when the
   model lists it in `log_scale` (exponents, tiny coefficients), affine otherwise, so one
@@ -12,7 +12,9 @@ their parameters span 1e-12 to 1.65e4, see shared/reference/seeds-digest.md):
   polish of the best; plateaus where a lobe is too narrow to be seen trap local starts,
   the population does not; the agreement of the starts is reported;
 * residuals are weighted by `u_brdf_per_sr` (χ² with a meaningful χ²/dof) or unweighted
-  (the paper's RMSE); robust losses (soft_l1, huber) take a scale estimated from the
+  (the paper's RMSE); `rig fit` chooses by the data (`choose_weighting`): weighted when every row
+  has a usable u, unweighted with a notice when none has (an imported ALTA file without #VS),
+  refused when only some have; robust losses (soft_l1, huber) take a scale estimated from the
   residuals' MAD, so outliers (glints, dust) cost linearly while the noise keeps its
   quadratic cost; a blind zone around retroreflection needs nothing special: the lobe's
   shoulders carry its width and height;
@@ -303,6 +305,43 @@ def usable_rows(dataset: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAG
     return np.array([not bad.intersection(flags) for flags in dataset.flags], bool)
 
 
+def usable_u(u: np.ndarray) -> np.ndarray:
+    """Rows whose u can weight a fit: finite and > 0 (an import without #VS writes 0, flag no_uncertainty)."""
+    u = np.asarray(u, float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(u) & (u > 0)
+
+
+def choose_weighting(u: np.ndarray, point_ids: list[str], requested: str | None) -> tuple[str, str | None]:
+    """The weighting of a fit of these rows and, when it was chosen for the user, a one-line notice.
+
+    `requested` "uncertainty" (--weighted) or "none" (--unweighted) is obeyed; "uncertainty" needs a
+    usable u on every row. None (the default) lets the data decide: weighted when every row has u,
+    unweighted (said in the notice) when none has, as for an imported ALTA file without #VS.
+    When only some rows have u the choice is refused rather than guessed: weighting would need u
+    invented for the others, and fitting unweighted would silently drop the uncertainties the lab
+    measured and the χ²/dof that checks them; a mix usually means merged sources or a broken
+    budget, which the user should see. ValueError names the column, the count and a row.
+    """
+    if requested is not None and requested not in WEIGHTINGS:
+        raise ValueError(f"weighting {requested!r}; allowed: {', '.join(WEIGHTINGS)}")
+    has_u = usable_u(u)
+    n, n_u = len(has_u), int(np.count_nonzero(has_u))
+    if requested == "none":
+        return "none", None
+    if n_u == n:                # every row has u (or there is no row: fit_dataset then says so)
+        return "uncertainty", None
+    if requested is None and n_u == 0:
+        return "none", ("no row has an uncertainty (u_brdf_per_sr is 0 or missing): "
+                        "fitting unweighted (the paper's RMSE; no χ²/dof)")
+    example = point_ids[int(np.argmin(has_u))]
+    missing = f"{n - n_u} of {n} rows have no usable u_brdf_per_sr (finite, > 0), e.g. point {example}"
+    if requested == "uncertainty":
+        raise ValueError(f"--weighted needs u_brdf_per_sr on every row; {missing}; fit --unweighted instead")
+    raise ValueError(f"{missing}: choose --unweighted, or leave those rows out "
+                     "(--exclude-flag no_uncertainty for imported ones)")
+
+
 def fit_dataset(dataset: Dataset, model_name: str, *, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS,
                 **kwargs: Any) -> FitResult:
     """`fit` on a dataset's achieved angles, leaving out rows with `exclude_flags`."""
@@ -370,13 +409,21 @@ def cmd_fit(args: argparse.Namespace) -> int:
         dataset = load(args.dataset)
     except (DatasetError, OSError) as exc:
         return fail(str(exc))
-    kwargs = {"weighting": "none" if args.unweighted else "uncertainty", "loss": args.loss,
-              "starts": args.starts, "seed": args.seed,
-              "exclude_flags": UNUSABLE_FLAGS + tuple(args.exclude_flag)}
+    exclude = UNUSABLE_FLAGS + tuple(args.exclude_flag)
     fixed = dict(args.fix)
     unknown = sorted(set(fixed).difference(*(MODELS[name].param_names for name in names)))
     if unknown:
         return fail(f"--fix {', '.join(unknown)}: no such parameter in {', '.join(names)}")
+    keep = usable_rows(dataset, exclude)
+    try:
+        weighting, notice = choose_weighting(dataset["u_brdf_per_sr"][keep],
+                                             [pid for pid, k in zip(dataset.point_id, keep) if k], args.weighting)
+    except ValueError as exc:
+        return fail(f"{args.dataset}: {exc}")
+    if notice:
+        print(f"rig fit: {args.dataset}: {notice}", file=sys.stderr)
+    kwargs = {"weighting": weighting, "loss": args.loss, "starts": args.starts, "seed": args.seed,
+              "exclude_flags": exclude}
     try:
         results = [fit_dataset(dataset, name, fixed={k: v for k, v in fixed.items()
                                                      if k in MODELS[name].param_names}, **kwargs)
@@ -396,14 +443,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def add_subcommand(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register `rig fit DATASET --model NAME|all [--json OUT] [--unweighted] [--loss L] ...`."""
+    """Register `rig fit DATASET --model NAME|all [--json OUT] [--weighted|--unweighted] [--loss L] ...`."""
     p = subparsers.add_parser("fit", help="fit a BRDF model (or all) to a dataset: parameters ± stderr, "
                                           "RMSE/NRMSE/NCC (Spieringhs 2023 Eqs. 16, 19, 20)")
     p.add_argument("dataset", help="dataset folder (contains dataset.json and brdf.csv)")
     p.add_argument("--model", required=True, help=f"one of {', '.join(sorted(MODELS))}, or all")
     p.add_argument("--json", metavar="OUT", help="also write the result as JSON")
-    p.add_argument("--unweighted", action="store_true",
-                   help="minimise the plain squared error (the paper's RMSE) instead of χ² with u_brdf_per_sr")
+    weighting = p.add_mutually_exclusive_group()
+    weighting.add_argument("--weighted", dest="weighting", action="store_const", const="uncertainty",
+                           help="minimise χ² with u_brdf_per_sr; refused unless every row has u (default: "
+                                "weighted when every row has u, unweighted with a notice when none has)")
+    weighting.add_argument("--unweighted", dest="weighting", action="store_const", const="none",
+                           help="minimise the plain squared error (the paper's RMSE), even where u_brdf_per_sr is given")
     p.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss against outliers (default linear)")
     p.add_argument("--starts", type=int, default=4, help="local runs after the global stage (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the global stage (default 0)")

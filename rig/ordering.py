@@ -11,11 +11,19 @@ ordered by stage travel, then the views of each series by nearest neighbour +
 can be reached on either arm branch, (a, b) or (a ± 180°, -b); the tour is built
 on the cheaper branch pair of every edge, then the cheapest consistent branch
 sequence along the tour is chosen exactly (Viterbi).
+
+Nearest neighbour + 2-opt over n nodes needs the n × n cost matrix and O(n²) work
+per 2-opt pass. Up to BLOCK_NODES nodes (every series count and view count of the
+paper campaigns) it runs on all of them at once; a longer path (a campaign with
+thousands of incidences) is cut into blocks of consecutive nodes along a Hilbert
+curve through the positions, each block ordered the same way from where the
+previous one ended, so the time and the memory grow linearly with the nodes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -25,13 +33,20 @@ from rig import geometry as geo
 from rig.collisions import ForbiddenZone, zone_at, zones_of
 
 if TYPE_CHECKING:
-    from rig.plan import Plan
+    from rig.plan import Plan, PlannedPoint
     from rig.rigconfig import AxesConfig, RigConfig
 
 #: Where the rig starts a campaign (home).
 START_DEG = (0.0, 0.0, 0.0, 0.0)
 #: A 2-opt move must gain more than this (seconds) to be taken: round-off never loops.
 MIN_GAIN_S = 1e-9
+#: Most nodes ordered at once by nearest neighbour + 2-opt; longer paths go block by block.
+BLOCK_NODES = 200
+#: Resolution of the Hilbert curve that sorts the nodes of a long path into blocks (bits per axis).
+HILBERT_BITS = 16
+
+#: cost(rows, cols): move times (len(rows), len(cols)) between the nodes with those indices.
+CostFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def axis_parameters(axes: AxesConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -114,6 +129,51 @@ def open_path(from_start: np.ndarray, cost: np.ndarray) -> np.ndarray:
     return two_opt(from_start, cost, nearest_neighbour(from_start, cost))
 
 
+def hilbert_order(xy: np.ndarray, bits: int = HILBERT_BITS) -> np.ndarray:
+    """Indices of points (n, 2) along a Hilbert curve over their bounding square (ties: lower index).
+
+    Consecutive points on the curve are close, and any run of them is compact: the blocks
+    of a long path (`blocked_path`).
+    """
+    xy = np.asarray(xy, float)
+    side = 1 << bits
+    span = float(np.max(np.ptp(xy, axis=0)))
+    q = np.minimum(np.floor((xy - xy.min(axis=0)) / (span or 1.0) * side), side - 1).astype(np.int64)
+    x, y, d = q[:, 0], q[:, 1], np.zeros(len(q), np.int64)
+    s = side >> 1
+    while s:
+        rx, ry = (x & s) > 0, (y & s) > 0
+        d += s * s * ((3 * rx.astype(np.int64)) ^ ry.astype(np.int64))
+        flip = ~ry & rx                                   # rotate the quadrant so the curve stays connected
+        x, y = np.where(flip, side - 1 - x, x), np.where(flip, side - 1 - y, y)
+        x, y = np.where(ry, x, y), np.where(ry, y, x)
+        s >>= 1
+    return np.argsort(d, kind="stable")
+
+
+def blocked_path(from_start: np.ndarray, cost: CostFn, xy: np.ndarray) -> np.ndarray:
+    """Open path through n nodes from a start: `open_path` on all of them up to BLOCK_NODES, else block
+    by block.
+
+    `from_start` (n,) are the move times from the start, `cost` gives the times between nodes and
+    `xy` (n, 2) positions that are near where moves are short (for the Hilbert curve). Blocks are
+    BLOCK_NODES-long runs along the curve, taken in the direction that begins nearer the start,
+    each ordered from the end of the previous one: O(n · BLOCK_NODES) time and O(BLOCK_NODES²) memory.
+    """
+    n = len(from_start)
+    if n <= BLOCK_NODES:
+        every = np.arange(n)
+        return open_path(from_start, cost(every, every))
+    curve = hilbert_order(xy)
+    if from_start[curve[-1]] < from_start[curve[0]]:
+        curve = curve[::-1]
+    path: list[np.ndarray] = []
+    for block in np.array_split(curve, math.ceil(n / BLOCK_NODES)):
+        entry = cost(path[-1][-1:], block)[0] if path else from_start[block]
+        path.append(block[open_path(entry, cost(block, block))])
+    return np.concatenate(path)
+
+
 def arm_branches(motors_deg: np.ndarray, limits: geo.AxisLimits,
                  zones: Sequence[ForbiddenZone] = ()) -> np.ndarray:
     """Candidate positions (n, 3, 4) of the same directions: as given, then (a - 180°, -b), (a + 180°, -b).
@@ -145,10 +205,11 @@ def choose_branches(axes: AxesConfig, start_deg: np.ndarray, candidates: np.ndar
     steps = _candidate_times(axes, candidates[:-1, :, None, :], candidates[1:, None, :, :])   # (n-1, K, K)
     best = first
     back = np.empty(steps.shape[::2], int)                                                     # (n-1, K)
+    to = np.arange(candidates.shape[1])
     for k, step in enumerate(steps):
         total = best[:, None] + step
         back[k] = np.argmin(total, axis=0)
-        best = np.take_along_axis(total, back[k][None, :], axis=0)[0]
+        best = total[back[k], to]
     chosen = np.empty(len(candidates), int)
     chosen[-1] = int(np.argmin(best))
     for k in range(len(back) - 1, -1, -1):
@@ -162,13 +223,15 @@ def order_views(axes: AxesConfig, start_deg: np.ndarray, candidates: np.ndarray)
     The tour uses the cheaper branch pair of every edge (symmetric, so 2-opt
     applies); the branches are then fixed consistently along it.
     """
-    n, k = candidates.shape[:2]
     from_start = np.min(_candidate_times(axes, start_deg, candidates), axis=1)
-    cost = np.full((n, n), np.inf)
-    for i in range(k):
-        for j in range(k):
-            cost = np.minimum(cost, _candidate_times(axes, candidates[:, None, i], candidates[None, :, j]))
-    order = open_path(from_start, cost)
+
+    def cost(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Cheapest branch pair of every edge: (rows, cols, K, K) move times, least over the last two."""
+        pairs = _candidate_times(axes, candidates[rows, None, :, None], candidates[None, cols, None, :])
+        return pairs.min(axis=(2, 3))
+
+    speed = axis_parameters(axes)[0]
+    order = blocked_path(from_start, cost, candidates[:, 0, 2:] / speed[2:])     # the arm, in seconds of travel
     return order, choose_branches(axes, start_deg, candidates[order])
 
 
@@ -179,7 +242,12 @@ def order_series(axes: AxesConfig, start_deg: np.ndarray, stage_deg: np.ndarray)
 
     stage = on_stage(stage_deg)
     from_start = travel_time_s(axes, on_stage(np.asarray(start_deg, float)[:2]), stage)
-    return open_path(from_start, travel_time_s(axes, stage[:, None], stage[None, :]))
+
+    def cost(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        return travel_time_s(axes, stage[rows, None], stage[None, cols])
+
+    speed = axis_parameters(axes)[0]
+    return blocked_path(from_start, cost, stage_deg / speed[:2])                 # the stage, in seconds of travel
 
 
 def order_plan(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG,
@@ -191,7 +259,9 @@ def order_plan(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG,
     their given order.
     """
     axes, limits, zones = rig.axes, rig.axes.limits(), zones_of(rig)
-    by_series = {s.index: [p for p in plan.points if p.series == s.index] for s in plan.series}
+    by_series: dict[int, list[PlannedPoint]] = {s.index: [] for s in plan.series}
+    for p in plan.points:                       # one pass: the plan may hold thousands of series
+        by_series[p.series].append(p)
     filled = [s for s in plan.series if by_series[s.index]]
     stage = np.array([by_series[s.index][0].motors_deg[:2] for s in filled]).reshape(-1, 2)
     series = [filled[k] for k in order_series(axes, np.asarray(start, float), stage)]

@@ -6,7 +6,9 @@ skipped, so ids survive a resume and skipped points can be reported. The
 order is the campaign's (`table`) or a travel-time optimised one
 (`optimised`, rig.ordering); both are deterministic, so a resume that rebuilds
 the plan gets the same order. Moves through the rig's forbidden zones
-(rig.collisions) are checked in the final order.
+(rig.collisions) are checked in the final order. The work grows linearly with
+the points (tests/test_plan_scaling.py counts it): nothing scans all points per
+series, repeated views are found with a k-d tree, and the ordering goes block by block.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from rig import geometry as geo
 from rig.campaign import Campaign, CentredPattern
@@ -119,11 +122,23 @@ def viewing_directions(campaign: Campaign, theta_i_deg: float, phi_i_deg: float)
             pts = np.radians(np.asarray(spec.points, float))
             chunks.append(geo.sph_to_vec(pts[:, 0], pts[:, 1]))
     dirs = np.concatenate(chunks)
-    keep = []
-    for k, d in enumerate(dirs):
-        if not keep or np.all(geo.angle_between(dirs[keep], d) > SAME_DIRECTION_RAD):
-            keep.append(k)
-    return dirs[keep]
+    return dirs[_first_of_repeats(dirs)]
+
+
+def _first_of_repeats(dirs: np.ndarray) -> np.ndarray:
+    """Indices of the unit vectors (n, 3) kept in order: each unless an earlier kept one lies within
+    SAME_DIRECTION_RAD of it.
+
+    Only the pairs a k-d tree finds closer than a chord of twice that angle are measured (a chord
+    never exceeds its angle), so a dense viewing pattern costs O(n log n), not the n² angles of all pairs.
+    """
+    pairs = cKDTree(dirs).query_pairs(2 * SAME_DIRECTION_RAD, output_type="ndarray")
+    pairs = pairs[geo.angle_between(dirs[pairs[:, 0]], dirs[pairs[:, 1]]) <= SAME_DIRECTION_RAD]
+    keep = np.ones(len(dirs), bool)
+    for earlier, later in sorted(map(tuple, pairs), key=lambda pair: pair[1]):     # i < j per pair
+        if keep[earlier]:
+            keep[later] = False
+    return np.flatnonzero(keep)
 
 
 def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = None) -> Plan:
@@ -135,6 +150,18 @@ def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = N
     ordering = ordering or getattr(campaign, "ordering", "optimised")
     if ordering not in ("optimised", "table"):
         raise ValueError(f"ordering must be 'optimised' or 'table', got {ordering!r}")
+    return _in_order(_table_plan(campaign, rig), rig, ordering)
+
+
+def _in_order(plan: Plan, rig: RigConfig, ordering: Ordering) -> Plan:
+    """The table plan in `ordering`, with the moves that would cross a forbidden zone checked."""
+    if ordering == "optimised":
+        plan = order_plan(plan, rig, START_DEG)
+    return drop_colliding_moves(plan, rig, START_DEG)
+
+
+def _table_plan(campaign: Campaign, rig: RigConfig) -> Plan:
+    """Every point in campaign order with its motors, or skipped with a reason; moves not yet checked."""
     limits = rig.axes.limits()
     zones = zones_of(rig)
     optics = CameraOptics.from_config(rig)
@@ -153,16 +180,11 @@ def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = N
                                  limits, current).as_array()
         motors, zone = _outside_zones(motors, limits, zones)
         reason = np.full(len(wo), "", dtype=object)
-
-        def mark(mask: np.ndarray, why: str | np.ndarray) -> None:
-            free = (reason == "") & mask
-            reason[free] = np.broadcast_to(np.asarray(why, dtype=object), reason.shape)[free]
-
-        mark(wo[:, 2] <= 1e-12, "below_horizon")
-        mark(theta_o > max_view_rad + 1e-12, "beyond_max_view_theta")
-        mark(geo.angle_between(wo, wi[None, :]) < occlusion_rad, "occluded_by_lamp")
-        mark(~np.all(np.isfinite(motors), axis=1), "axis_limits")
-        mark(zone != "", "forbidden_zone:" + zone)
+        _mark(reason, wo[:, 2] <= 1e-12, "below_horizon")
+        _mark(reason, theta_o > max_view_rad + 1e-12, "beyond_max_view_theta")
+        _mark(reason, geo.angle_between(wo, wi[None, :]) < occlusion_rad, "occluded_by_lamp")
+        _mark(reason, ~np.all(np.isfinite(motors), axis=1), "axis_limits")
+        _mark(reason, zone != "", "forbidden_zone:" + zone)
         if campaign.limits.skip_roi_unlit:
             ok = np.all(np.isfinite(motors), axis=1)
             lit = np.zeros(len(wo), bool)
@@ -170,7 +192,7 @@ def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = N
                 m = np.radians(motors[ok])
                 lit[ok] = roi_inside_spot(m[:, 0], m[:, 1], m[:, 2], m[:, 3], campaign.capture.roi_px,
                                           optics, rig.geometry.spot_diameter_m / 2)
-            mark(~lit, "roi_unlit")
+            _mark(reason, ~lit, "roi_unlit")
 
         for k in range(len(wo)):
             pid = f"{series.index:02d}-{k:03d}"
@@ -179,13 +201,15 @@ def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = N
                 skipped.append(SkippedPoint(pid, series.index, *angles, reason[k]))
             else:
                 points.append(PlannedPoint(pid, series.index, *angles, tuple(float(x) for x in motors[k])))
-        measured = [p for p in points if p.series == series.index]
-        if measured:
-            current = measured[-1].motors_deg
-    plan = Plan(tuple(series_list), tuple(points), tuple(skipped))
-    if ordering == "optimised":
-        plan = order_plan(plan, rig, START_DEG)
-    return drop_colliding_moves(plan, rig, START_DEG)
+        if np.any(reason == ""):                # the next series' inverse kinematics starts at its last point
+            current = points[-1].motors_deg
+    return Plan(tuple(series_list), tuple(points), tuple(skipped))
+
+
+def _mark(reason: np.ndarray, mask: np.ndarray, why: str | np.ndarray) -> None:
+    """Give the points in `mask` that have no skip reason yet the reason `why` (the first reason wins)."""
+    free = (reason == "") & mask
+    reason[free] = np.broadcast_to(np.asarray(why, dtype=object), reason.shape)[free]
 
 
 def _outside_zones(motors: np.ndarray, limits: geo.AxisLimits,
@@ -248,7 +272,9 @@ def rig_time_comparison(campaign: Campaign, rig: RigConfig, capture_s_per_point:
     """Estimated rig time (s) of the campaign in table order and in optimised order (`rig plan`).
 
     With forbidden zones the two orders may leave out different points (collisions depend on the order).
+    Both are `build_plan`'s plans; the points and motors are worked out once for the two.
     """
-    table, optimised = (build_plan(campaign, rig, ordering=o) for o in ("table", "optimised"))
+    plan = _table_plan(campaign, rig)
+    table, optimised = (_in_order(plan, rig, o) for o in ("table", "optimised"))
     return (estimate_rig_time_s(table, rig, capture_s_per_point),
             estimate_rig_time_s(optimised, rig, capture_s_per_point))
