@@ -1,12 +1,12 @@
 """ALTA text BRDF files (Belcour, Pacanowski et al.): reader, writer, conversion to rig angles.
 
-Format (shared/reference/formats.md): header lines `#KEY value` (`#DIM N P`,
+Format (the ALTA library's text format, github.com/belcour/alta): header lines `#KEY value` (`#DIM N P`,
 `#PARAM_IN`, `#PARAM_OUT`, `#VS 0|1|2`, free keys such as `#SAMPLE`), comment
 lines `# text`, then one whitespace-separated row per sample: N inputs, P
 outputs, then 0, 1 (± half-width) or 2 (lower, upper bound) confidence columns
 for the first output only. Angles are radians.
 
-Conventions of the conversion to rig angles (shared/spec/geometry.md):
+Conventions of the conversion to rig angles (docs/geometry.md):
 - `SPHERICAL_TL_PL_TV_PV` = [θL, φL, θV, φV]: the light is our incident direction
   ωi, the view our viewing direction ωo; both point away from the surface and
   use φ = atan2(y, x) like ours, so the angles carry over unchanged.
@@ -275,6 +275,7 @@ def to_rig(data: AltaData, *, assume_param_out: str | None = None) -> RigPoints:
     if param_out not in CONVERTIBLE_OUT:
         raise AltaError(f"{where}: #PARAM_OUT {param_out} cannot be imported "
                         f"(supported: {', '.join(CONVERTIBLE_OUT)})")
+    _refuse_impossible_values(data)
     wi, wo, phi_i_pole, phi_o_pole = _directions(data.param_in, data.x)
     theta_i, phi_i = vec_to_sph(wi, phi_i_pole)
     theta_o, phi_o = vec_to_sph(wo, phi_o_pole)
@@ -290,5 +291,26 @@ def to_rig(data: AltaData, *, assume_param_out: str | None = None) -> RigPoints:
         brdf /= cos_o
         u = None if u is None else u / cos_o
         notes.append(f"f·cos θV divided by cos θV; points with θV > {COSINE_FACTOR_MAX_THETA_DEG:g}° left out")
+    overflow = (reason == "") & ~(np.isfinite(brdf) & np.isfinite(u if u is not None else brdf))
+    if overflow.any():
+        k = int(np.flatnonzero(overflow)[0])
+        raise AltaError(f"{where}:{data.line[k]}: value {_number(data.y[k, 0])} gives a BRDF or uncertainty too large "
+                        "for a double")
     return RigPoints(angles=angles, brdf=brdf, u_brdf=u, reason=reason,
                      param_out=param_out, notes=notes)
+
+
+def _refuse_impossible_values(data: AltaData) -> None:
+    """AltaError naming the line of a negative BRDF, a negative ± half-width (#VS 1) or a lower
+    bound above the upper one (#VS 2): a broken file, not noise whose absolute value to take."""
+    f = data.y[:, 0]
+    checks = [(f < 0, lambda k: f"BRDF value {_number(f[k])} is negative")]
+    if data.vs == 1:
+        checks.append((data.ci[:, 0] < 0, lambda k: f"uncertainty ±{_number(data.ci[k, 0])} is negative"))
+    if data.vs == 2:
+        checks.append((data.ci[:, 1] < data.ci[:, 0], lambda k: f"confidence interval {data.ci[k].tolist()} has "
+                                                                "its lower bound above the upper"))
+    for bad, say in checks:
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise AltaError(f"{data.path}:{data.line[k]}: {say(k)}; nothing was imported")

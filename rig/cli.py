@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from collections import Counter
 from pathlib import Path
 
+from drivers.factory import check_devices
 from drivers.interfaces import DeviceError, RigDevices
 from rig import __version__, bench, export, fit, importer, plots
-from rig.campaign import Campaign, load_campaign
+from rig.campaign import Campaign, check_campaign_for_rig, load_campaign
 from rig.configfile import ConfigFileError
 from rig.connect import open_rig
-from rig.dataset import DatasetError
-from rig.execute import execute
-from rig.exits import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
+from rig.dataset import DatasetError, DatasetWriter, require_new_output
+from rig.diskspace import estimate_dataset_bytes, space_problem
+from rig.execute import execute, manifest_for
+from rig.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
 from rig.plan import (
     Plan,
     build_plan,
@@ -24,9 +28,7 @@ from rig.plan import (
 from rig.progress import ProgressBar, format_duration
 from rig.resume import prepare_resume
 from rig.rigconfig import RigConfig, load_rig_config
-
-#: Nominal capture time per point for plan estimates: probe, one main exposure, readouts.
-NOMINAL_CAPTURE_S = 0.05
+from rig.runner import NOMINAL_CAPTURE_S
 
 
 def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
@@ -36,10 +38,11 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     for reason, n in sorted(plan.skipped_by_reason().items(), key=lambda kv: -kv[1]):
         print(f"    {n:6d}  {reason}: {describe_reason(reason)}")
     print("  per series (θi, φi): measured / planned")
+    measured = Counter(p.series for p in plan.points)
+    planned = measured + Counter(p.series for p in plan.skipped)
     for s in plan.series:
-        n_meas = sum(p.series == s.index for p in plan.points)
-        n_all = n_meas + sum(p.series == s.index for p in plan.skipped)
-        print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {n_meas:4d} / {n_all}")
+        print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {measured[s.index]:4d} / "
+              f"{planned[s.index]}")
     moves = estimate_rig_time_s(plan, rig, NOMINAL_CAPTURE_S)
     warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
     print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
@@ -59,6 +62,7 @@ def _rig_config(args) -> RigConfig:
 def _load(args) -> tuple[Campaign, RigConfig, Plan]:
     campaign = load_campaign(args.campaign)
     rig = _rig_config(args)
+    check_campaign_for_rig(campaign, rig, args.campaign)
     return campaign, rig, build_plan(campaign, rig)
 
 
@@ -90,6 +94,7 @@ def print_devices(devices: RigDevices) -> None:
 def cmd_devices(args) -> int:
     try:
         rig = load_rig_config(args.rig_file)
+        check_devices(rig, args.rig_file)
         with open_rig(rig) as devices:
             print(f"rig {rig.name} ({'simulated' if rig.simulated else 'hardware'})")
             print_devices(devices)
@@ -127,13 +132,27 @@ def _report_outcome(outcome, n_skipped: int) -> int:
     return EXIT_OK if outcome.status == "complete" else EXIT_INTERRUPTED
 
 
+def _sim_pace_problem() -> str | None:
+    """A bad RIG_SIM_PACE (the simulated clock's pace) is bad input, refused before anything is written."""
+    from simulators.clock import pace_from_env   # only the simulated rig has a paced clock
+
+    try:
+        pace_from_env()
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
 def cmd_run(args) -> int:
+    if (problem := _sim_pace_problem()) is not None:
+        return fail(problem)
     if args.resume:
         return cmd_resume(args)
     if not args.campaign:
         return fail("give a campaign file, or --resume DIR")
     try:
         campaign, rig, plan = _load(args)
+        check_devices(rig, args.rig or "<built-in rig>")
     except ConfigFileError as exc:
         return fail(str(exc))
     if rig.simulated and campaign.sample.simulated_brdf is None:
@@ -143,14 +162,22 @@ def cmd_run(args) -> int:
         return fail(f"{args.campaign}: no point of the campaign can be measured "
                      f"(skipped: {plan.skipped_by_reason()})")
     out = Path(args.out or campaign.output.dir)
+    campaign_path = Path(args.campaign).resolve()     # the manifest's record works from any folder
+    needed = estimate_dataset_bytes(len(plan.points), len(plan.skipped), rig, campaign.capture.save_images)
+    try:
+        require_new_output(out)
+        problem = space_problem(out, needed)
+        if problem:
+            return fail(problem)
+        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig), space_needed_bytes=needed)
+        writer.write_skipped(plan.skipped)
+    except DatasetError as exc:
+        return fail(str(exc))
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
     print(f"rig {__version__}: {campaign.name} on {where} → {out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
-    try:
-        outcome = execute(campaign, Path(args.campaign), rig, plan, out,
-                          progress=None if args.quiet else ProgressBar(), handle_signals=True)
-    except DatasetError as exc:
-        return fail(str(exc))
+    outcome = execute(campaign, campaign_path, rig, plan, out, writer=writer,
+                      progress=None if args.quiet else ProgressBar(), handle_signals=True)
     return _report_outcome(outcome, len(plan.skipped))
 
 
@@ -180,7 +207,24 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        code = args.func(args)
+        sys.stdout.flush()           # a closed pipe shows here, not in the interpreter's exit
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
+    return code
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush does not fail a second time."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return                       # not a real file (captured): nothing will be flushed to a pipe
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
 
 
 if __name__ == "__main__":

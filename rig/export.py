@@ -1,6 +1,6 @@
 """`rig export`: a dataset folder → ALTA, Radiance pabopto2bsdf input, a plain CSV, road-lighting quantities.
 
-Formats (shared/reference/formats.md):
+Formats (ALTA's text format; Radiance's pabopto2bsdf input; CIE / EN 1436 road-lighting quantities):
 - `alta`: one text file, `#DIM 4 1`, `#PARAM_IN SPHERICAL_TL_PL_TV_PV` (θi, φi, θo, φo
   in radians; light = our incident direction, view = our viewing direction, both
   pointing away from the surface), `#PARAM_OUT INV_STERADIAN`, `#VS 1` whose column
@@ -11,7 +11,7 @@ Formats (shared/reference/formats.md):
   rotation and its frame is our SCS), `#format: theta phi BSDF`, rows `θo φo f`.
   Radiance's incident vector points toward the source like ours.
 - `csv`: one row per point, units in the column names.
-- `rl`: road-lighting quantities per point (shared/reference/measurement.md):
+- `rl`: road-lighting quantities per point (EN 1436, CIE 144 r-tables):
   q = L/E = f_r [sr⁻¹] (E on the surface, directional light);
   R_L = L/E⊥ = f_r·cos θi, written in mcd·m⁻²·lx⁻¹ (EN 1436);
   r = q·cos³γ written ×10⁴ as in CIE r-tables, with γ (the measurement note's ε)
@@ -38,7 +38,7 @@ import numpy as np
 
 from rig import __version__
 from rig.alta import write_alta
-from rig.dataset import Dataset, DatasetError, load
+from rig.dataset import Dataset, DatasetError, load, removed_on_failure
 from rig.exits import EXIT_OK, fail
 from rig.geometry import angle_between, sph_to_vec, vec_to_sph, wrap_360, wrap_pi
 
@@ -54,7 +54,7 @@ class ExportError(RuntimeError):
 
 
 def _refuse_existing(path: Path) -> None:
-    if path.exists() and (path.is_file() or any(path.iterdir())):
+    if path.exists() and (not path.is_dir() or any(path.iterdir())):
         raise ExportError(f"{path} already exists; choose another --out (nothing was overwritten)")
 
 
@@ -179,7 +179,8 @@ def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLik
     _refuse_existing(out)
     if len(ds) == 0:
         raise ExportError(f"{ds.path}: no measured point to export")
-    return EXPORTERS[fmt](ds, out)
+    with removed_on_failure(out):
+        return EXPORTERS[fmt](ds, out)
 
 
 def cmd_export(args) -> int:

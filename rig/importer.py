@@ -1,4 +1,4 @@
-"""`rig import`: a foreign ALTA text file → a rig dataset folder (shared/spec/dataset.md).
+"""`rig import`: a foreign ALTA text file → a rig dataset folder (docs/dataset.md).
 
 Conventions of an imported dataset (also written into its manifest):
 - Angles: the file's angles converted by `rig.alta.to_rig`; they are the
@@ -37,7 +37,14 @@ from rig.alta import (
     read_alta,
     to_rig,
 )
-from rig.dataset import BRDF_COLUMNS, DatasetError, DatasetWriter, utc_now
+from rig.dataset import (
+    BRDF_COLUMNS,
+    DatasetError,
+    DatasetWriter,
+    removed_on_failure,
+    require_new_output,
+    utc_now,
+)
 from rig.exits import EXIT_OK, fail
 from rig.plan import SkippedPoint
 
@@ -135,21 +142,21 @@ def import_alta(path: str | Path, out_dir: str | Path, *, sample_id: str | None 
     series = series_index(points.angles.theta_i_deg, points.angles.phi_i_deg)
     ids = [f"{s:02d}-L{line}" for s, line in zip(series, data.line)]
     now = utc_now()
-    writer = DatasetWriter(out_dir, _manifest(path, data, points, sample_id, now))
-    try:
-        skipped = _skipped(points, ids, series)
-        writer.write_skipped(skipped)
-        for row in _rows(points, ids, series, now):
-            writer.append_row(row)
-        writer.event("imported", source_file=str(path.resolve()), rows_in_file=len(data),
-                     measured=writer.n_rows, skipped=len(skipped))
-        writer.update_manifest(status="complete", counts={"planned": len(data), "measured": writer.n_rows,
-                                                          "skipped": len(skipped)})
-    except Exception as exc:
-        writer.update_manifest(status="failed", error=str(exc))   # the folder says it is incomplete
-        raise
-    finally:
-        writer.close()
+    out = Path(out_dir)
+    require_new_output(out, hint="choose another --out")
+    with removed_on_failure(out):        # a failed import leaves no half-written folder behind
+        writer = DatasetWriter(out, _manifest(path, data, points, sample_id, now))
+        try:
+            skipped = _skipped(points, ids, series)
+            writer.write_skipped(skipped)
+            for row in _rows(points, ids, series, now):
+                writer.append_row(row)
+            writer.event("imported", source_file=str(path.resolve()), rows_in_file=len(data),
+                         measured=writer.n_rows, skipped=len(skipped))
+            writer.update_manifest(status="complete", counts={"planned": len(data), "measured": writer.n_rows,
+                                                              "skipped": len(skipped)})
+        finally:
+            writer.close()
     return writer.dir
 
 

@@ -31,7 +31,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from rig.brdf_models import get_model
-from rig.dataset import Dataset, DatasetError, load
+from rig.dataset import Dataset, DatasetError, load, removed_on_failure, require_new_output
 from rig.exits import EXIT_OK, fail
 from rig.export import series_incidence_deg
 from rig.geometry import mirror_direction, sph_to_vec
@@ -239,21 +239,27 @@ def _sample(ds: Dataset) -> str:
 
 def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLike,
                  fit: Mapping | None = None, *, plane_tol_deg: float = PLANE_TOL_DEG) -> list[Path]:
-    """Write the figures of the module docstring into out_dir (created); returns their paths."""
+    """Write the figures of the module docstring into out_dir; returns their paths.
+
+    out_dir is created; an existing file or non-empty folder is refused (DatasetError), and a
+    failure part-way removes the figures already written.
+    """
     ds = dataset if isinstance(dataset, Dataset) else load(dataset)
     if len(ds) == 0:
         raise DatasetError(f"{ds.path}: no measured point to plot")
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    require_new_output(out_dir, hint="choose another --out")
     model = _fit_model(fit)
     paths = []
-    for s in np.unique(ds["series"]).astype(int):
-        theta_i = series_incidence_deg(ds, s)[0]
-        stem = f"s{s:02d}_ti{theta_i:02.0f}"
-        paths.append(plot_plane(ds, s, out_dir / f"plane_{stem}.png", model, plane_tol_deg))
-        paths.append(plot_lobe(ds, s, out_dir / f"lobe_{stem}.png", model))
-    if fit is not None:
-        paths.append(plot_residuals(ds, fit, out_dir / "fit_residuals.png"))
+    with removed_on_failure(out_dir):
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for s in np.unique(ds["series"]).astype(int):
+            theta_i = series_incidence_deg(ds, s)[0]
+            stem = f"s{s:02d}_ti{theta_i:02.0f}"
+            paths.append(plot_plane(ds, s, out_dir / f"plane_{stem}.png", model, plane_tol_deg))
+            paths.append(plot_lobe(ds, s, out_dir / f"lobe_{stem}.png", model))
+        if fit is not None:
+            paths.append(plot_residuals(ds, fit, out_dir / "fit_residuals.png"))
     return paths
 
 
@@ -289,5 +295,5 @@ def add_subcommand(subparsers) -> None:
                                            "fit residuals")
     p.add_argument("dataset", metavar="DATASET", help="dataset folder")
     p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit --json` to overlay")
-    p.add_argument("--out", required=True, help="folder for the PNG files (created)")
+    p.add_argument("--out", required=True, help="new folder for the PNG files (must not exist or be empty)")
     p.set_defaults(func=cmd_plot)
