@@ -14,18 +14,18 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 from collections import namedtuple
 from pathlib import Path
 
 import numpy as np
 import pytest
+from rig_process import pending_points, start_rig, wait_until
 
 from rig import dataset as ds_module
 from rig import diskspace
 from rig.campaign import load_campaign
 from rig.cli import main
-from rig.dataset import DiskFullError, DatasetWriter, load
+from rig.dataset import DatasetWriter, DiskFullError, load
 from rig.images import write_luminance_exr
 from rig.plan import build_plan
 from rig.rigconfig import RigConfig
@@ -188,13 +188,8 @@ def test_a_filesystem_filling_up_mid_run_fails_cleanly_and_the_moved_folder_resu
                                                                                     planned_ids):
     disk = small_disk("600k")
     out = disk / "ds"
-    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "run", str(CAMPAIGN), "--out", str(out), "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    t0 = time.monotonic()
-    while not (out / "events.jsonl").exists() or (out / "events.jsonl").read_text().count('"point_pending"') < 10:
-        assert proc.poll() is None, proc.stderr.read()
-        assert time.monotonic() - t0 < 60, "run too slow"
-        time.sleep(0.005)
+    proc = start_rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
+    wait_until(lambda: pending_points(out) >= 10, proc, "10 points")
     fd = os.open(disk / "filler", os.O_WRONLY | os.O_CREAT)   # somebody else fills the disk
     try:
         while True:

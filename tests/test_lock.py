@@ -13,10 +13,10 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from rig_process import events_text, pending_points, start_rig, wait_until
 
 from rig.campaign import load_campaign
 from rig.dataset import DatasetError, DatasetWriter
@@ -25,29 +25,6 @@ from rig.plan import build_plan
 from rig.rigconfig import RigConfig
 
 CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
-
-
-def start(*args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "rig.cli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-
-
-def wait_for(predicate, proc: subprocess.Popen, what: str, timeout_s: float = 60.0) -> None:
-    t0 = time.monotonic()
-    while not predicate():
-        if proc.poll() is not None:
-            pytest.fail(f"process ended before {what}: {proc.stderr.read()}")
-        if time.monotonic() - t0 > timeout_s:
-            proc.kill()
-            pytest.fail(f"timed out waiting for {what}")
-        time.sleep(0.005)
-
-
-def pending_points(folder: Path) -> int:
-    try:
-        return (folder / "events.jsonl").read_text().count('"point_pending"')
-    except FileNotFoundError:
-        return 0
 
 
 def lock_holder(folder: Path) -> str:
@@ -73,15 +50,15 @@ def planned_ids():
 
 def test_two_resumes_at_once_one_is_refused_and_a_killed_holder_does_not_block(tmp_path, planned_ids):
     out = tmp_path / "ds"
-    run = start("run", str(CAMPAIGN), "--out", str(out), "--quiet")
-    wait_for(lambda: pending_points(out) >= 10, run, "10 points")
+    run = start_rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
+    wait_until(lambda: pending_points(out) >= 10, run, "10 points")
     run.kill()                                            # kill -9: the kernel drops its lock
     assert run.wait(timeout=60) == -signal.SIGKILL
     assert (out / LOCK_NAME).exists()                     # the lock file stays behind ...
 
-    first = start("run", "--resume", str(out), "--quiet")  # ... and does not block this resume
-    wait_for(lambda: lock_holder(out).startswith(f"pid {first.pid} "), first, "the resume's lock")
-    wait_for(lambda: '"event": "resume"' in (out / "events.jsonl").read_text(), first, "the resume event")
+    first = start_rig("run", "--resume", str(out), "--quiet")  # ... and does not block this resume
+    wait_until(lambda: lock_holder(out).startswith(f"pid {first.pid} "), first, "the resume's lock")
+    wait_until(lambda: '"event": "resume"' in events_text(out), first, "the resume event")
     os.kill(first.pid, signal.SIGSTOP)                    # frozen while it holds the lock
     try:
         before = snapshot(out)

@@ -12,10 +12,10 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from rig_process import pending_points, start_rig, wait_until
 
 from rig.campaign import load_campaign
 from rig.plan import build_plan
@@ -24,29 +24,8 @@ from rig.rigconfig import RigConfig
 CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
 
-def rig(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "rig.cli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, **kw)
-
-
-def points_done(folder: Path) -> int:
-    """Points measured so far: rows plus points written ahead (both count as completed)."""
-    try:
-        text = (folder / "events.jsonl").read_text()
-    except FileNotFoundError:
-        return 0
-    return text.count('"point_pending"')
-
-
-def signal_after(proc, folder: Path, n_points: int, sig: int, timeout_s: float = 60.0) -> None:
-    t0 = time.monotonic()
-    while points_done(folder) < n_points:
-        if proc.poll() is not None:
-            pytest.fail(f"run ended before {n_points} points: {proc.stderr.read()}")
-        if time.monotonic() - t0 > timeout_s:
-            proc.kill()
-            pytest.fail("run too slow")
-        time.sleep(0.005)
+def signal_after(proc, folder: Path, n_points: int, sig: int) -> None:
+    wait_until(lambda: pending_points(folder) >= n_points, proc, f"{n_points} points")
     proc.send_signal(sig)
 
 
@@ -79,7 +58,7 @@ def resume_to_completion(folder: Path, *extra) -> subprocess.CompletedProcess:
 def test_interrupt_then_resume_gives_the_planned_points_once(tmp_path, planned_ids, sig):
     out = tmp_path / "ds"
     n = random.Random(int(sig) * 7919).randint(3, 80)
-    proc = rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
+    proc = start_rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
     signal_after(proc, out, n, sig)
     code = proc.wait(timeout=60)
     before = ids(out)
@@ -111,7 +90,7 @@ def test_interrupt_then_resume_gives_the_planned_points_once(tmp_path, planned_i
 
 def test_kill_mid_write_torn_lines_are_cut(tmp_path, planned_ids):
     out = tmp_path / "ds"
-    proc = rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
+    proc = start_rig("run", str(CAMPAIGN), "--out", str(out), "--quiet")
     signal_after(proc, out, 20, signal.SIGKILL)
     proc.wait(timeout=60)
     with open(out / "brdf.csv", "a") as fh:               # what a kill during a write leaves behind
@@ -129,7 +108,7 @@ def test_resume_refuses_a_changed_campaign_unless_forced(tmp_path, planned_ids):
     campaign = tmp_path / "c.yaml"
     shutil.copy(CAMPAIGN, campaign)
     out = tmp_path / "ds"
-    proc = rig("run", str(campaign), "--out", str(out), "--quiet")
+    proc = start_rig("run", str(campaign), "--out", str(out), "--quiet")
     signal_after(proc, out, 10, signal.SIGTERM)
     proc.wait(timeout=60)
     campaign.write_text(campaign.read_text() + "\n# edited\n")

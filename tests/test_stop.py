@@ -13,7 +13,6 @@ import os
 import random
 import signal
 import subprocess
-import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from typing import Callable
 
 import pytest
 import yaml
+from rig_process import events_text, start_rig, wait_until
 
 from drivers.interfaces import DeviceError, RigDevices
 from drivers.wallclock import WallClock
@@ -329,8 +329,7 @@ def test_a_bad_pace_in_the_environment_is_refused_naming_the_variable(monkeypatc
 # -- through `rig run` ------------------------------------------------------------------------------
 
 def rig_run(campaign_file: Path, out: Path, **env: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "rig.cli", "run", str(campaign_file), "--out", str(out), "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, **env})
+    return start_rig("run", str(campaign_file), "--out", str(out), "--quiet", env=env)
 
 
 def events_of(folder: Path) -> list[dict]:
@@ -338,22 +337,9 @@ def events_of(folder: Path) -> list[dict]:
     return [json.loads(line) for line in lines]
 
 
-def wait_for(proc: subprocess.Popen, folder: Path, ready: Callable[[str], bool], timeout_s: float = 60.0) -> None:
+def wait_for(proc: subprocess.Popen, folder: Path, ready: Callable[[str], bool], what: str) -> None:
     """Poll events.jsonl until `ready(text)`; fail if the run ends or hangs first."""
-    t0 = time.monotonic()
-    while True:
-        try:
-            text = (folder / "events.jsonl").read_text()
-        except FileNotFoundError:
-            text = ""
-        if ready(text):
-            return
-        if proc.poll() is not None:
-            pytest.fail(f"run ended first (exit {proc.returncode}): {proc.stderr.read()}")
-        if time.monotonic() - t0 > timeout_s:
-            proc.kill()
-            pytest.fail("run too slow")
-        time.sleep(0.001)
+    wait_until(lambda: ready(events_text(folder)), proc, what)
 
 
 def test_rig_run_sigint_during_warm_up(tmp_path):
@@ -363,7 +349,7 @@ def test_rig_run_sigint_during_warm_up(tmp_path):
     f.write_text(yaml.safe_dump(data))
     out = tmp_path / "ds"
     proc = rig_run(f, out, RIG_SIM_PACE=str(PACE))
-    wait_for(proc, out, lambda text: '"lamp_on"' in text)
+    wait_for(proc, out, lambda text: '"lamp_on"' in text, "the warm-up")
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=60) == 130, proc.stderr.read()
     ev = events_of(out)
@@ -387,10 +373,10 @@ def test_rig_run_two_quick_signals_always_end_interrupted_and_safe(tmp_path, sec
     """Ctrl+C, then Ctrl+C (or SIGTERM) after a delay (s) or once an event is on disk."""
     out = tmp_path / "ds"
     proc = rig_run(CAMPAIGN, out)
-    wait_for(proc, out, lambda text: text.count('"point_pending"') >= 3)
+    wait_for(proc, out, lambda text: text.count('"point_pending"') >= 3, "3 points")
     proc.send_signal(signal.SIGINT)
     if when.startswith('"'):
-        wait_for(proc, out, lambda text: when in text or '"safe_state"' in text)
+        wait_for(proc, out, lambda text: when in text or '"safe_state"' in text, when)
     else:
         time.sleep(float(when))
     if proc.poll() is None:
