@@ -1,6 +1,6 @@
 """`rig` as a real process, for the tests that signal, kill or race it and watch its dataset folder.
 
-The timeout of `wait_until` is a hang guard (a run that never gets there fails the test instead
+The bound of `wait_until` is a hang guard (a run that never gets there fails the test instead
 of blocking the suite), not a speed assertion: its bound is far beyond any machine's run time.
 """
 
@@ -38,13 +38,20 @@ def pending_points(folder: Path) -> int:
     return events_text(folder).count('"point_pending"')
 
 
+#: Pause between two looks at the folder.
+POLL_S = 0.002
+
+
 def wait_until(ready: Callable[[], bool], proc: subprocess.Popen, what: str, timeout_s: float = HANG_S) -> None:
-    """Poll `ready()` until it holds; fail the test if `proc` ends first or hangs."""
-    t0 = time.monotonic()
-    while not ready():
+    """Poll `ready()` until it holds; fail the test if `proc` ends first or hangs.
+
+    The guard counts polls rather than reading a clock: on a loaded machine it only gets longer.
+    """
+    for _ in range(int(timeout_s / POLL_S)):
+        if ready():
+            return
         if proc.poll() is not None:
             pytest.fail(f"rig ended (exit {proc.returncode}) before {what}: {proc.stderr.read()}")
-        if time.monotonic() - t0 > timeout_s:
-            proc.kill()
-            pytest.fail(f"rig did not reach {what} within {timeout_s:.0f} s: hung")
-        time.sleep(0.002)
+        time.sleep(POLL_S)
+    proc.kill()
+    pytest.fail(f"rig did not reach {what} in {timeout_s:.0f} s of polling: hung")
