@@ -34,12 +34,7 @@ from scipy.optimize import least_squares
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.bench import machine
-
-from rig.brdf_models import MODELS
-from rig.cli import main as rig_main
-from rig.dataset import Dataset, load
-from rig.fit import (
+from rig.analysis.fit import (
     DE_MAXITER,
     DE_POPSIZE,
     GLOBAL_POINTS,
@@ -47,6 +42,10 @@ from rig.fit import (
     fit_dataset,
     format_comparison,
 )
+from rig.cli.main import main as rig_main
+from rig.data.dataset import Dataset, load
+from rig.physics.brdf_models import MODELS
+from rig.session.bench import machine
 
 RMS = ("rm1", "rm2", "rm3")
 #: Spieringhs et al. 2023 Table 7 (RetroPhong) and the paper's own goodness of fit (Table 3).

@@ -27,14 +27,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drivers.interfaces import Window  # noqa: E402
-from rig.bench import machine  # noqa: E402
-from rig.brdf_models import get_model  # noqa: E402
-from rig.geometry import forward_deg, inverse_deg  # noqa: E402
-from rig.optics import CameraOptics, roi_inside_spot  # noqa: E402
-from rig.rigconfig import RigConfig  # noqa: E402
-from simulators.camera import SimCamera  # noqa: E402
-from simulators.world import SimWorld  # noqa: E402
+from rig.simulators.camera import SimCamera  # noqa: E402
+from rig.simulators.world import SimWorld  # noqa: E402
+
+from rig.config.rigfile import RigConfig, camera_optics  # noqa: E402
+from rig.core.values import Window  # noqa: E402
+from rig.physics.brdf_models import get_model  # noqa: E402
+from rig.physics.geometry import forward_deg, inverse_deg  # noqa: E402
+from rig.physics.optics import roi_inside_spot  # noqa: E402
+from rig.session.bench import machine  # noqa: E402
 
 ROI_PX = 70
 EXPOSURE_S = 0.01
@@ -69,7 +70,7 @@ def main() -> int:
     args = ap.parse_args()
     cfg = RigConfig()
     cam = lit_camera(cfg)
-    optics = CameraOptics.from_config(cfg)
+    optics = camera_optics(cfg)
     roi = Window.centred(optics.width_px, optics.height_px, ROI_PX, ROI_PX)
     frame = np.random.default_rng(0).random((optics.height_px, optics.width_px))
     rng = np.random.default_rng(1)

@@ -26,17 +26,18 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drivers.interfaces import Window  # noqa: E402
-from drivers.modbus_axis import ModbusAxisController  # noqa: E402
-from drivers.transport import LineTransport  # noqa: E402
-from rig.bench import machine  # noqa: E402
-from rig.campaign import load_campaign  # noqa: E402
-from rig.execute import manifest_for  # noqa: E402
-from rig.dataset import DatasetWriter  # noqa: E402
-from rig.plan import build_plan  # noqa: E402
-from rig.rigconfig import RigConfig  # noqa: E402
-from rig.runner import Runner  # noqa: E402
-from simulators.rig import SimulatedRig  # noqa: E402
+from rig.drivers.modbus_axis import ModbusAxisController  # noqa: E402
+from rig.drivers.transport import LineTransport  # noqa: E402
+from rig.simulators.rig import SimulatedRig  # noqa: E402
+
+from rig.acquisition.engine import Runner  # noqa: E402
+from rig.acquisition.execute import manifest_for  # noqa: E402
+from rig.config.campaign import load_campaign  # noqa: E402
+from rig.config.rigfile import RigConfig  # noqa: E402
+from rig.core.values import Window  # noqa: E402
+from rig.data.dataset import DatasetWriter  # noqa: E402
+from rig.planning.plan import build_plan  # noqa: E402
+from rig.session.bench import machine  # noqa: E402
 
 
 class Timed:

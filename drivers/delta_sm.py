@@ -19,9 +19,12 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import TypeVar
 
-from drivers.interfaces import Clock, DeviceError, LampSupply
-from drivers.retry import RetryPolicy, call_with_retry
-from drivers.transport import EventSink, LineTransport, no_events
+from rig.drivers.interfaces import LampSupply
+from rig.drivers.retry import RetryPolicy, call_with_retry
+from rig.drivers.transport import EventSink, LineTransport, no_events
+
+from rig.core.clock import Clock
+from rig.core.errors import DeviceError
 
 T = TypeVar("T")
 

@@ -13,56 +13,10 @@ the simulated rig moves and exposures cost rig time and no wall time.
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import dataclass
 
-import numpy as np
-
-
-class DeviceError(RuntimeError):
-    """A device refused, timed out or answered nonsense.
-
-    The message names the device and what it answered; `transient` tells the
-    driver whether a retry may help, `unanswered` that retries did not.
-    """
-
-    def __init__(self, device: str, message: str, *, transient: bool = False, unanswered: bool = False):
-        super().__init__(f"{device}: {message}")
-        self.device = device
-        self.transient = transient
-        #: Transient faults outlasted the retries: the device stopped answering. The run
-        #: engine pauses for it (a suspender) rather than failing at once.
-        self.unanswered = unanswered
-
-
-class Clock(abc.ABC):
-    """Time source of a rig: wall time on hardware, simulated time in simulators.
-
-    Every wait of a driver (a move, an exposure, a lamp ramp, a retry's back-off) is a
-    `sleep` on this clock, so the clock is where a wait can be cut short: the run engine
-    installs a `sleep_check` that raises when the operator asked to stop the axes now
-    (a second Ctrl+C, SIGTERM). Raising only there, between two device exchanges, never
-    tears an exchange in half, and the exit path can still talk to every device.
-    """
-
-    #: Called when a sleep starts and at least every `CHECK_SLICE_S` of wall time while it lasts;
-    #: whatever it raises ends the sleep. None: sleeps are never cut short.
-    sleep_check: Callable[[], None] | None = None
-    #: Wall time between two calls of `sleep_check` during one sleep.
-    CHECK_SLICE_S = 0.05
-
-    @abc.abstractmethod
-    def now(self) -> float:
-        """Seconds since an arbitrary, fixed origin."""
-
-    @abc.abstractmethod
-    def sleep(self, seconds: float) -> None:
-        """Let `seconds` of rig time pass (calling `sleep_check` as documented above)."""
-
-    def _check(self) -> None:
-        """Run the installed `sleep_check`, if any (for implementations of `sleep`)."""
-        if self.sleep_check is not None:
-            self.sleep_check()
+from rig.core.clock import Clock
+from rig.core.values import Frame, IlluminanceReading, SensorInfo, Window
 
 
 class Axis(abc.ABC):
@@ -176,13 +130,6 @@ class LampSupply(abc.ABC):
         """Release the connection; the default has nothing to release."""
 
 
-@dataclass(frozen=True)
-class IlluminanceReading:
-    illuminance_lx: float
-    photocurrent_a: float
-    calibration_lx_per_a: float
-
-
 class IlluminanceMeter(abc.ABC):
     """Optometer reading E⊥ at the sample position (perpendicular incidence)."""
 
@@ -195,60 +142,6 @@ class IlluminanceMeter(abc.ABC):
 
     def close(self) -> None:
         """Release the connection; the default has nothing to release."""
-
-
-@dataclass(frozen=True)
-class Window:
-    """Rectangle of sensor pixels: columns x0..x0+width-1, rows y0..y0+height-1."""
-
-    x0: int
-    y0: int
-    width: int
-    height: int
-
-    @classmethod
-    def centred(cls, sensor_width: int, sensor_height: int, width: int, height: int) -> "Window":
-        return cls((sensor_width - width) // 2, (sensor_height - height) // 2, width, height)
-
-    def inner(self, other: "Window") -> tuple[slice, slice]:
-        """Array slices of `other` (which must lie inside self) in an image of this window."""
-        if not (self.x0 <= other.x0 and self.y0 <= other.y0
-                and other.x0 + other.width <= self.x0 + self.width
-                and other.y0 + other.height <= self.y0 + self.height):
-            raise ValueError(f"window {other} is not inside {self}")
-        r0, c0 = other.y0 - self.y0, other.x0 - self.x0
-        return slice(r0, r0 + other.height), slice(c0, c0 + other.width)
-
-
-@dataclass(frozen=True)
-class SensorInfo:
-    """What the pipeline needs to know of the sensor to merge and weight exposures."""
-
-    width_px: int
-    height_px: int
-    bit_depth: int
-    gain_dn_per_e: float           # K in EMVA 1288
-    read_noise_e: float            # temporal dark noise σd
-    black_level_dn: float          # offset added by the ADC
-    calibration_cd_m2_per_dn_s: float  # luminance = (DN - dark) / t × this
-    calibration_u_rel: float = 0.0     # relative standard uncertainty of that factor
-    min_exposure_s: float = 1e-4
-    max_exposure_s: float = 15.0
-
-    @property
-    def saturation_dn(self) -> int:
-        return 2 ** self.bit_depth - 1
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One raw exposure (or a dark frame taken with the shutter closed)."""
-
-    pixels_dn: np.ndarray          # uint16, shape (height, width) of `window`
-    exposure_s: float              # exposure time actually realised
-    window: Window
-    dark: bool = False
-    meta: dict = field(default_factory=dict)
 
 
 class LuminanceCamera(abc.ABC):

@@ -31,11 +31,13 @@ from pymodbus.exceptions import ModbusException
 # and register; pymodbus' own ERROR lines (with hex dumps) would only repeat them.
 logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 from pymodbus.pdu import ModbusPDU
+from rig.drivers.interfaces import Axis
+from rig.drivers.retry import RetryPolicy, call_with_retry
+from rig.drivers.transport import EventSink, no_events
 
-from drivers.interfaces import Axis, Clock, DeviceError
-from drivers.retry import RetryPolicy, call_with_retry
-from drivers.transport import EventSink, no_events
-from rig.motion import move_time_s
+from rig.core.clock import Clock
+from rig.core.errors import DeviceError
+from rig.core.motion import move_time_s
 
 # -- register map -------------------------------------------------------------------------------
 VENDOR, MODEL, FIRMWARE, AXIS_COUNT = 0x0000, 0x0008, 0x0010, 0x0014   # identity block

@@ -18,9 +18,13 @@ from __future__ import annotations
 import re
 from typing import Callable, TypeVar
 
-from drivers.interfaces import Clock, DeviceError, IlluminanceMeter, IlluminanceReading
-from drivers.retry import RetryPolicy, call_with_retry
-from drivers.transport import EventSink, LineTransport, no_events
+from rig.drivers.interfaces import IlluminanceMeter
+from rig.drivers.retry import RetryPolicy, call_with_retry
+from rig.drivers.transport import EventSink, LineTransport, no_events
+
+from rig.core.clock import Clock
+from rig.core.errors import DeviceError
+from rig.core.values import IlluminanceReading
 
 T = TypeVar("T")
 

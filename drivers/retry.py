@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, TypeVar
 
-from drivers.interfaces import Clock, DeviceError
+from rig.core.clock import Clock
+from rig.core.errors import DeviceError
 
 T = TypeVar("T")
 

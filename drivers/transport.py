@@ -9,13 +9,12 @@ raising), reconnects a dropped link and turns every failure into a
 
 from __future__ import annotations
 
-from typing import Callable
-
 import socket
+from typing import Callable
 
 import serial
 
-from drivers.interfaces import DeviceError
+from rig.core.errors import DeviceError
 
 EventSink = Callable[..., None]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from drivers.interfaces import Clock
+from rig.core.clock import Clock
 
 
 class WallClock(Clock):

@@ -1,6 +1,6 @@
 """Motion physics of one simulated axis on the SimClock; no protocol, no I/O.
 
-The controller's pulse generator follows a trapezoidal profile (rig.motion)
+The controller's pulse generator follows a trapezoidal profile (rig.core.motion)
 from the command position to the target: that is the command position. The
 load-side encoder reading follows it with an offset that changes during a
 move from its old to its new value: half the backlash behind the last
@@ -21,10 +21,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from drivers.modbus_axis import Alarm
-from rig.motion import move_time_s, position_at
-from rig.rigconfig import AxisConfig
-from simulators.world import SimWorld
+from rig.drivers.modbus_axis import Alarm
+from rig.simulators.world import SimWorld
+
+from rig.config.rigfile import AxisConfig
+from rig.core.motion import move_time_s, position_at
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Simulated luminance camera: renders the simulated world and reads it through the sensor model.
 
-Each pixel of the requested window looks along its pinhole ray (rig.optics);
+Each pixel of the requested window looks along its pinhole ray (rig.physics.optics);
 where the ray hits the front of the sample inside the collimated lamp beam the
 scene luminance is L = f_r(ωi, ωo) · E⊥ · cos θi · texture(x, y) · glint(x, y, ωi, ωo),
 with ωo the per-pixel direction from that point to the camera; everywhere else it is the
@@ -11,13 +11,16 @@ view and the camera's shadow are not modelled: the planner excludes those points
 from __future__ import annotations
 
 import numpy as np
+from rig.drivers.interfaces import LuminanceCamera
+from rig.simulators.sensor import SensorModel
+from rig.simulators.texture import GlintTexture, ValueNoiseTexture
+from rig.simulators.world import SimWorld
 
-from drivers.interfaces import DeviceError, Frame, LuminanceCamera, Window
-from rig.geometry import LAMP_DIRECTION_GCS, sample_frame
-from rig.optics import CameraOptics, faces_lamp, in_beam, intersect_sample_plane, pixel_rays
-from simulators.sensor import SensorModel
-from simulators.texture import GlintTexture, ValueNoiseTexture
-from simulators.world import SimWorld
+from rig.config.rigfile import camera_optics
+from rig.core.errors import DeviceError
+from rig.core.values import Frame, Window
+from rig.physics.geometry import LAMP_DIRECTION_GCS, sample_frame
+from rig.physics.optics import faces_lamp, in_beam, intersect_sample_plane, pixel_rays
 
 
 class SimCamera(LuminanceCamera):
@@ -27,7 +30,7 @@ class SimCamera(LuminanceCamera):
         cfg = world.config
         self.world = world
         self.sensor = cfg.camera.sensor_info()
-        self.optics = CameraOptics.from_config(cfg)
+        self.optics = camera_optics(cfg)
         self.texture = ValueNoiseTexture.from_config(cfg.simulation)
         self.glint = GlintTexture.from_config(cfg.simulation)
         self.model = SensorModel.from_config(cfg.camera, cfg.simulation, world.rng)

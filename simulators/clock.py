@@ -14,7 +14,7 @@ import os
 import threading
 import time
 
-from drivers.interfaces import Clock
+from rig.core.clock import Clock
 
 #: Environment variable with the default pace of new SimClocks (wall seconds per rig second).
 PACE_ENV = "RIG_SIM_PACE"

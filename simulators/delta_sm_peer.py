@@ -21,7 +21,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Self
 
-from simulators.world import SimWorld
+from rig.simulators.world import SimWorld
 
 FAULTS = ("no_reply", "garbled", "short", "disconnect", "error_queue", "burnout")
 #: Faults that spoil the reply to the next query (the query itself is executed).

@@ -10,7 +10,7 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
-from rig.runner import Progress
+from rig.core.values import Progress
 
 #: Transient faults per peer that a run must survive with retries only.
 TRANSIENT = {

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from simulators.clock import SimClock
+from rig.simulators.clock import SimClock
 
 #: Integration steps per thermal time constant (exponential Euler; exact at constant current).
 STEPS_PER_TAU = 10

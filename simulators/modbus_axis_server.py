@@ -1,4 +1,4 @@
-"""Protocol peer of `drivers.modbus_axis`: a simulated two-axis controller on loopback.
+"""Protocol peer of `rig.drivers.modbus_axis`: a simulated two-axis controller on loopback.
 
 A pymodbus 3.16 server (SimDevice) in a background thread with its own event
 loop serves the register map of docs/modbus-axis-register-map.md from
@@ -28,12 +28,25 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.base import ModbusBaseServer
 from pymodbus.simulator import DataType, SimData, SimDevice
+from rig.drivers.modbus_axis import (
+    BLOCK_REGS,
+    FIRMWARE,
+    MODEL,
+    MOVE_REGS,
+    TEXT_REGS,
+    VENDOR,
+    Command,
+    Reg,
+    Status,
+    axis_base,
+    int32_to_regs,
+    regs_to_int32,
+    text_to_regs,
+)
+from rig.simulators.axis_model import AxisModel
+from rig.simulators.world import SimWorld
 
-from drivers.modbus_axis import (BLOCK_REGS, FIRMWARE, MODEL, MOVE_REGS, TEXT_REGS, VENDOR, Command, Reg, Status,
-                                 axis_base, int32_to_regs, regs_to_int32, text_to_regs)
-from rig.rigconfig import AxisConfig
-from simulators.axis_model import AxisModel
-from simulators.world import SimWorld
+from rig.config.rigfile import AxisConfig
 
 FAULTS = ("no_reply", "exception", "disconnect", "garbled", "alarm")
 IDENTITY = {VENDOR: "rig simulators", MODEL: "SIM-2AX Modbus", FIRMWARE: "1.0.0"}

@@ -20,7 +20,7 @@ import threading
 import tty
 from collections import deque
 
-from simulators.world import SimWorld
+from rig.simulators.world import SimWorld
 
 #: Full scale of ranges 0 … 7 (2 mA … 200 pA).
 FULL_SCALE_A = tuple(2e-3 * 10.0 ** -r for r in range(8))

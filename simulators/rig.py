@@ -10,15 +10,16 @@ from __future__ import annotations
 
 from typing import Mapping
 
-from drivers.factory import POSITIONER_AXES, connect_devices
-from drivers.interfaces import RigDevices
-from rig.brdf_models import get_model
-from rig.rigconfig import RigConfig
-from simulators.camera import SimCamera
-from simulators.delta_sm_peer import DeltaSMPeer
-from simulators.modbus_axis_server import ModbusAxisServer
-from simulators.p9710_peer import P9710Peer
-from simulators.world import SimWorld
+from rig.drivers.interfaces import RigDevices
+from rig.simulators.camera import SimCamera
+from rig.simulators.delta_sm_peer import DeltaSMPeer
+from rig.simulators.modbus_axis_server import ModbusAxisServer
+from rig.simulators.p9710_peer import P9710Peer
+from rig.simulators.world import SimWorld
+
+from rig.config.rigfile import RigConfig
+from rig.devices import POSITIONER_AXES, connect_devices
+from rig.physics.brdf_models import get_model
 
 
 class SimulatedRig:

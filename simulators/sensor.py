@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.interfaces import Window
-from rig.rigconfig import CameraConfig, SimulationConfig
+from rig.config.rigfile import CameraConfig, SimulationConfig
+from rig.core.values import Window
 
 #: Poisson means are capped at this multiple of the full well: the pixel saturates
 #: anyway, and numpy's Poisson sampler refuses astronomically large means.

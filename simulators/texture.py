@@ -33,8 +33,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.special import ndtri
 
-from rig.optics import dot
-from rig.rigconfig import SimulationConfig
+from rig.config.rigfile import SimulationConfig
+from rig.physics.optics import dot
 
 _MASK64 = (1 << 64) - 1
 

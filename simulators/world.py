@@ -10,12 +10,12 @@ from __future__ import annotations
 from typing import Callable, Mapping
 
 import numpy as np
+from rig.simulators.clock import SimClock
+from rig.simulators.lamp import LampPhysics
 
-from rig.brdf_models import BrdfModel
-from rig.geometry import AXIS_NAMES
-from rig.rigconfig import RigConfig
-from simulators.clock import SimClock
-from simulators.lamp import LampPhysics
+from rig.config.rigfile import RigConfig
+from rig.physics.brdf_models import BrdfModel
+from rig.physics.geometry import AXIS_NAMES
 
 
 class SimWorld:

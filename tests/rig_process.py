@@ -20,8 +20,8 @@ HANG_S = 120.0
 
 
 def start_rig(*args: str, env: dict[str, str] | None = None, **popen) -> subprocess.Popen:
-    """`python -m rig.cli ARGS` with text pipes; `env` is added to this process's environment."""
-    return subprocess.Popen([sys.executable, "-m", "rig.cli", *args], stdout=subprocess.PIPE,
+    """`python -m rig.cli.main ARGS` with text pipes; `env` is added to this process's environment."""
+    return subprocess.Popen([sys.executable, "-m", "rig.cli.main", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env={**os.environ, **(env or {})}, **popen)
 
 

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig.alta import AltaError, read_alta, to_rig, write_alta
-from rig.geometry import sph_to_vec
+from rig.data.alta import AltaError, read_alta, to_rig, write_alta
+from rig.physics.geometry import sph_to_vec
 
 
 def _write(tmp_path: Path, text: str) -> Path:

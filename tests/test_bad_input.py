@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rig.cli import main
+from rig.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())
@@ -171,7 +171,7 @@ def _imported(tmp_path: Path) -> Path:
     """A small dataset folder (an ALTA import: fast, no rig)."""
     import numpy as np
 
-    from rig.alta import write_alta
+    from rig.data.alta import write_alta
     src = write_alta(tmp_path / "s.alta", np.radians([[40.0, 0, 30, 180], [40.0, 0, 10, 90]]), [0.5, 0.2],
                      param_in="SPHERICAL_TL_PL_TV_PV", param_out="INV_STERADIAN", ci=[0.01, 0.01])
     assert main(["import", str(src), "--out", str(tmp_path / "ds")]) == 0
@@ -209,7 +209,7 @@ def test_a_closed_output_pipe_is_not_a_traceback():
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "plan", str(ROOT / "campaigns" / "quick.yaml")],
+    proc = subprocess.Popen([sys.executable, "-m", "rig.cli.main", "plan", str(ROOT / "campaigns" / "quick.yaml")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()                               # `rig plan … | head` once head has its lines
     code = proc.wait(timeout=60)

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
-from rig.brdf_models import (
+from rig.physics.brdf_models import (
     MODELS,
     albedo,
     back_vector,
@@ -23,7 +23,7 @@ from rig.brdf_models import (
     mirror_about_normal,
     schlick,
 )
-from rig.geometry import sph_to_vec
+from rig.physics.geometry import sph_to_vec
 
 RM1 = {"kd": 0.620, "n": 24.0, "k1": 0.158, "k2": 0.0415, "k3": 0.00133, "k4": 5.47}
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rig.campaign import CampaignError, load_campaign, parse_campaign
+from rig.config.campaign import CampaignError, load_campaign, parse_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())
@@ -199,8 +199,8 @@ def test_pattern_phi_360_is_the_contracts_example():
 
 def test_drift_limit_below_the_meter_noise_is_refused():
     """Before: a limit below the meter's repeatability discarded and re-took points without end."""
-    from rig.campaign import check_campaign_for_rig
-    from rig.rigconfig import RigConfig
+    from rig.config.campaign import check_campaign_for_rig
+    from rig.config.rigfile import RigConfig
 
     rig = RigConfig()            # repeatability 0.002: two 5-reading means differ by 0.13 % (1σ)
     check_campaign_for_rig(parse_campaign(variant()), rig)
@@ -213,8 +213,8 @@ def test_drift_limit_below_the_meter_noise_is_refused():
 
 
 def test_roi_larger_than_the_sensor_is_refused():
-    from rig.campaign import check_campaign_for_rig
-    from rig.rigconfig import CameraConfig, RigConfig
+    from rig.config.campaign import check_campaign_for_rig
+    from rig.config.rigfile import CameraConfig, RigConfig
 
     small = RigConfig(camera=CameraConfig(width_px=640, height_px=480))
     with pytest.raises(CampaignError, match="'capture.roi_px'.*640×480"):

@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel
 
-from rig.campaign import (
+from rig.config.campaign import (
     Campaign,
     CampaignError,
     Capture,
@@ -28,9 +28,9 @@ from rig.campaign import (
     check_campaign_for_rig,
     parse_campaign,
 )
-from rig.capture import MODES, CaptureSettings
-from rig.plan import build_plan, estimate_rig_time_s
-from rig.rigconfig import RigConfig
+from rig.config.capture import MODES, CaptureSettings
+from rig.config.rigfile import RigConfig
+from rig.planning.plan import build_plan, estimate_rig_time_s
 
 SECTIONS: dict[str, type[BaseModel]] = {"capture": Capture, "illuminance": Illuminance, "lamp": Lamp,
                                         "limits": Limits, "suspenders": Suspenders}

@@ -2,12 +2,18 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given, settings as hyp_settings, strategies as st
+from hypothesis import given
+from hypothesis import settings as hyp_settings
+from hypothesis import strategies as st
+from rig.drivers.interfaces import LuminanceCamera
 
-from drivers.interfaces import Clock, DeviceError, Frame, LuminanceCamera, SensorInfo, Window
-from rig.capture import CaptureSettings, DarkFrameCache, capture_point, fixed_bracket, frames_for_snr
-from rig.hdr import saturation_threshold_dn
-from rig.roi import block_means
+from rig.acquisition.capture import DarkFrameCache, capture_point, fixed_bracket, frames_for_snr
+from rig.config.capture import CaptureSettings
+from rig.core.clock import Clock
+from rig.core.errors import DeviceError
+from rig.core.values import Frame, SensorInfo, Window
+from rig.physics.hdr import saturation_threshold_dn
+from rig.physics.roi import block_means
 
 GAIN_DN_PER_E = 0.25
 CAL_CD_M2_PER_DN_S = 0.01

@@ -4,7 +4,7 @@ with `rig import`, fitted with `rig fit --model mrm`, compared with the publishe
 
 import json
 
-from rig.cli import main
+from rig.cli.main import main
 
 
 def test_yellow_tape_mrm_fit_lands_near_the_published_values(tmp_path, capsys, cea_dir):

@@ -4,11 +4,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from rig.campaign import parse_campaign
-from rig.collisions import (SAMPLE_STEP_DEG, CollisionsConfig, ForbiddenZone, move_positions, path_crosses,
-                            zone_at)
-from rig.plan import SKIP_REASONS, build_plan, describe_reason
-from rig.rigconfig import AxesConfig, AxisConfig, RigConfig
+from rig.config.campaign import parse_campaign
+from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig
+from rig.config.zones import CollisionsConfig, ForbiddenZone
+from rig.planning.collisions import SAMPLE_STEP_DEG, move_positions, path_crosses, zone_at
+from rig.planning.plan import build_plan
+from rig.planning.points import SKIP_REASONS, describe_reason
 
 HOME = (0.0, 0.0, 0.0, 0.0)
 AXES = RigConfig().axes

@@ -2,7 +2,7 @@
 
 Valid files are mutated (keys deleted, values replaced by wrong types, huge, negative, infinite or
 NaN numbers, long strings, nested garbage; unknown keys, duplicate keys, alias bombs) and run
-through `rig.cli.main` in-process. Whatever the input: an exit code of 0 or 2 (1 only for a
+through `rig.cli.main.main` in-process. Whatever the input: an exit code of 0 or 2 (1 only for a
 device failure), never an uncaught exception, a bounded message, and nothing written on exit 2.
 """
 
@@ -18,10 +18,10 @@ from typing import Any
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from rig.campaign import Capture
-from rig.cli import main
 from test_campaign_property import field_strategy
+
+from rig.cli.main import main
+from rig.config.campaign import Capture
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGS = ROOT / "campaigns" / "rigs"

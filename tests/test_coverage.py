@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig.brdf_models import get_model
-from rig.campaign import load_campaign
-from rig.dataset import load
-from rig.execute import execute
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig, SimulationConfig
+from rig.acquisition.execute import execute
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig, SimulationConfig
+from rig.data.dataset import load
+from rig.physics.brdf_models import get_model
+from rig.planning.plan import build_plan
+from rig.session.connect import open_campaign_rig
 
 CAMPAIGNS = Path(__file__).parent / "campaigns"
 SEEDS = range(1, 7)
@@ -25,7 +26,7 @@ def errors(tmp_path, name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     campaign = load_campaign(CAMPAIGNS / name)
     rig = RigConfig(simulation=SimulationConfig(seed=seed))
     out = tmp_path / f"{name}-{seed}"
-    assert execute(campaign, None, rig, build_plan(campaign, rig), out).status == "complete"
+    assert execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig)).status == "complete"
     d = load(out)
     truth_spec = campaign.sample.simulated_brdf
     wi, wo = d.directions()

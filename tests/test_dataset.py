@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-from rig.dataset import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError, DatasetWriter
-from rig.plan import SkippedPoint
+from rig.data.dataset import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError, DatasetWriter
+from rig.planning.points import SkippedPoint
 
 CONTRACT_COLUMNS = [
     "point_id", "series", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg",

@@ -9,15 +9,15 @@ import threading
 from itertools import pairwise
 
 import pytest
+from rig.drivers.delta_sm import DeltaSM
+from rig.drivers.retry import RetryPolicy
+from rig.simulators.clock import SimClock
+from rig.simulators.delta_sm_peer import DeltaSMPeer, TcpLinePeer
+from rig.simulators.world import SimWorld
 
-from drivers.delta_sm import DeltaSM
-from drivers.interfaces import DeviceError
-from drivers.retry import RetryPolicy
-from rig.brdf_models import get_model
-from rig.rigconfig import RigConfig
-from simulators.clock import SimClock
-from simulators.delta_sm_peer import DeltaSMPeer, TcpLinePeer
-from simulators.world import SimWorld
+from rig.config.rigfile import RigConfig
+from rig.core.errors import DeviceError
+from rig.physics.brdf_models import get_model
 
 FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
 ATTEMPTS = 2

@@ -2,7 +2,7 @@
 clean failure during the run (one line naming the folder and the space needed, the rig made safe,
 status `failed` when it can be written, the completed rows intact), then `--resume` completes.
 
-ENOSPC is injected at the writer's one low-level write (`rig.dataset._write_all`) during an
+ENOSPC is injected at the writer's one low-level write (`rig.data.dataset._write_all`) during an
 in-process run on the simulated rig; a real small filesystem (tmpfs, needs root) is used where
 mounting is permitted, and skipped with the reason otherwise.
 """
@@ -21,14 +21,14 @@ import numpy as np
 import pytest
 from rig_process import pending_points, start_rig, wait_until
 
-from rig import dataset as ds_module
-from rig import diskspace
-from rig.campaign import load_campaign
-from rig.cli import main
-from rig.dataset import DatasetWriter, DiskFullError, load
-from rig.images import write_luminance_exr
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
+from rig.acquisition import diskspace
+from rig.cli.main import main
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig
+from rig.data import dataset as ds_module
+from rig.data.dataset import DatasetWriter, DiskFullError, load
+from rig.data.images import write_luminance_exr
+from rig.planning.plan import build_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
@@ -208,7 +208,7 @@ def test_a_filesystem_filling_up_mid_run_fails_cleanly_and_the_moved_folder_resu
 
     moved = tmp_path / "moved"
     shutil.copytree(out, moved)                           # carried to a disk with room
-    resumed = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(moved), "--quiet"],
+    resumed = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(moved), "--quiet"],
                              capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert resumed.returncode == 0, resumed.stderr
     assert sorted(ids(moved)) == planned_ids and ids(moved)[:len(before)] == before

@@ -12,10 +12,10 @@ import sys
 import numpy as np
 import pytest
 
-from rig.brdf_models import get_model
-from rig.cli import main
-from rig.dataset import BRDF_COLUMNS
-from rig.geometry import forward_deg, sph_to_vec
+from rig.cli.main import main
+from rig.data.dataset import BRDF_COLUMNS
+from rig.physics.brdf_models import get_model
+from rig.physics.geometry import forward_deg, sph_to_vec
 
 
 def read_rows(folder):
@@ -104,7 +104,7 @@ def test_illuminance_and_rows_consistent(reduced_run):
 
 
 def test_cli_entry_point_and_plan(tmp_path, test_campaigns_dir):
-    proc = subprocess.run([sys.executable, "-m", "rig.cli", "plan", str(test_campaigns_dir / "e2e-reduced.yaml")],
+    proc = subprocess.run([sys.executable, "-m", "rig.cli.main", "plan", str(test_campaigns_dir / "e2e-reduced.yaml")],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert "to measure:" in proc.stdout and "below_horizon" in proc.stdout

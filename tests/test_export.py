@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig import export as ex
-from rig.alta import read_alta
-from rig.cli import main
-from rig.dataset import load
-from rig.importer import import_alta
+from rig.cli.main import main
+from rig.data import export as ex
+from rig.data.alta import read_alta
+from rig.data.dataset import load
+from rig.data.importer import import_alta
 
 CAMPAIGN = Path(__file__).resolve().parent / "campaigns" / "e2e-reduced.yaml"
 

@@ -9,12 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from rig.brdf_models import get_model
-from rig.campaign import parse_campaign
-from rig.dataset import BRDF_COLUMNS, load
-from rig.execute import execute
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
+from rig.acquisition.execute import execute
+from rig.config.campaign import parse_campaign
+from rig.config.rigfile import RigConfig
+from rig.data.dataset import BRDF_COLUMNS, load
+from rig.physics.brdf_models import get_model
+from rig.planning.plan import build_plan
+from rig.session.connect import open_campaign_rig
 
 RM1 = {"kd": 0.620, "n": 24.0, "k1": 0.158, "k2": 0.0415, "k3": 0.00133, "k4": 5.47}
 
@@ -25,7 +26,7 @@ def measure(tmp_path, incidence, viewing, model="retrophong", params=RM1, **extr
         "incidence": incidence, "viewing": viewing, "lamp": {"warmup_min_s": 60}, **extra})
     rig = RigConfig()
     plan = build_plan(campaign, rig)
-    outcome = execute(campaign, None, rig, plan, tmp_path / "ds")
+    outcome = execute(campaign, None, rig, plan, tmp_path / "ds", open_campaign_rig(campaign, rig))
     assert outcome.status == "complete", outcome.error
     return load(tmp_path / "ds"), plan
 

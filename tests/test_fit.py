@@ -1,4 +1,4 @@
-"""Fitting (rig.fit): Table 7 RetroPhong parameters recovered from simulated campaigns, every
+"""Fitting (rig.analysis.fit): Table 7 RetroPhong parameters recovered from simulated campaigns, every
 registry model fitted back from exact data, stiff ranges, outliers, undetermined parameters,
 the JSON and the `rig fit` subcommand.
 
@@ -14,12 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from rig import geometry as geo
-from rig.brdf_models import MODELS
-from rig.campaign import load_campaign
-from rig.cli import main
-from rig.dataset import load
-from rig.fit import (
+from rig.analysis.fit import (
     UNUSABLE_FLAGS,
     ParamSpace,
     add_subcommand,
@@ -27,6 +22,11 @@ from rig.fit import (
     fit_dataset,
     usable_rows,
 )
+from rig.cli.main import main
+from rig.config.campaign import load_campaign
+from rig.data.dataset import load
+from rig.physics import geometry as geo
+from rig.physics.brdf_models import MODELS
 
 #: Spieringhs et al. 2023 Table 7, RetroPhong per road marking.
 TABLE7 = {

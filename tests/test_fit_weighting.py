@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from rig.alta import write_alta
-from rig.cli import main
-from rig.fit import choose_weighting
+from rig.analysis.fit import choose_weighting
+from rig.cli.main import main
+from rig.data.alta import write_alta
 
 KD = 0.6
 

@@ -1,4 +1,4 @@
-"""Tests of rig.geometry against the contract docs/geometry.md.
+"""Tests of rig.physics.geometry against the contract docs/geometry.md.
 
 Tolerances
 ----------
@@ -29,8 +29,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from rig import geometry as geo
-from rig.geometry import (
+from rig.physics import geometry as geo
+from rig.physics.geometry import (
     AXIS_NAMES,
     AxisLimits,
     BrdfAngles,

@@ -1,9 +1,10 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from drivers.interfaces import SensorInfo
-from rig.hdr import QUANTISATION_VAR_DN2, merge_exposures, saturation_threshold_dn
+from rig.core.values import SensorInfo
+from rig.physics.hdr import QUANTISATION_VAR_DN2, merge_exposures, saturation_threshold_dn
 
 SENSOR = SensorInfo(width_px=200, height_px=200, bit_depth=12, gain_dn_per_e=0.25, read_noise_e=8.0,
                     black_level_dn=64.0, calibration_cd_m2_per_dn_s=1.0)

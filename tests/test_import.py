@@ -7,10 +7,10 @@ import hashlib
 import numpy as np
 import pytest
 
-from rig import importer
-from rig.alta import write_alta
-from rig.dataset import load
-from rig.geometry import angle_between, mirror_direction
+from rig.data import importer
+from rig.data.alta import write_alta
+from rig.data.dataset import load
+from rig.physics.geometry import angle_between, mirror_direction
 
 #: The vendored CEA tapes (tests/data/cea-retro, the `cea_dir` fixture) by short name.
 TAPES = {"yellow": "retro-3M-yellow.alta", "gray": "retro-gray-tape.alta"}

@@ -18,11 +18,11 @@ from pathlib import Path
 import pytest
 from rig_process import events_text, pending_points, start_rig, wait_until
 
-from rig.campaign import load_campaign
-from rig.dataset import DatasetError, DatasetWriter
-from rig.folderlock import LOCK_NAME, FolderLock, FolderLockedError
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig
+from rig.data.dataset import DatasetError, DatasetWriter
+from rig.data.folderlock import LOCK_NAME, FolderLock, FolderLockedError
+from rig.planning.plan import build_plan
 
 CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
@@ -62,7 +62,7 @@ def test_two_resumes_at_once_one_is_refused_and_a_killed_holder_does_not_block(t
     os.kill(first.pid, signal.SIGSTOP)                    # frozen while it holds the lock
     try:
         before = snapshot(out)
-        second = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(out), "--quiet"],
+        second = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(out), "--quiet"],
                                 capture_output=True, text=True, timeout=60)
         after = snapshot(out)
     finally:

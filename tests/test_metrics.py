@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from rig.metrics import goodness_of_fit, ncc, nrmse, rmse
+from rig.analysis.metrics import goodness_of_fit, ncc, nrmse, rmse
 
 FM = [1.0, 2.0, 3.0]
 FR = [1.0, 2.0, 5.0]

@@ -6,16 +6,24 @@ import threading
 from types import SimpleNamespace
 
 import pytest
+from rig.drivers.interfaces import TwoAxisPositioner
+from rig.drivers.modbus_axis import (
+    ModbusAxisController,
+    Status,
+    int32_to_regs,
+    modbus_client,
+    regs_to_int32,
+    regs_to_text,
+    text_to_regs,
+)
+from rig.drivers.retry import RetryPolicy
+from rig.simulators.modbus_axis_server import ModbusAxisServer
+from rig.simulators.world import SimWorld
 
-from drivers.interfaces import DeviceError, TwoAxisPositioner
-from drivers.modbus_axis import (ModbusAxisController, Status, int32_to_regs, modbus_client, regs_to_int32,
-                                 regs_to_text, text_to_regs)
-from drivers.retry import RetryPolicy
-from rig.brdf_models import get_model
-from rig.motion import move_time_s, position_at
-from rig.rigconfig import AxisConfig, RigConfig, SimulationConfig
-from simulators.modbus_axis_server import ModbusAxisServer
-from simulators.world import SimWorld
+from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
+from rig.core.errors import DeviceError
+from rig.core.motion import move_time_s, position_at
+from rig.physics.brdf_models import get_model
 
 ARM = [(name, AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30, settle_s=0.2))
        for name in ("arm_azimuth", "arm_polar")]

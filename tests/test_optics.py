@@ -1,4 +1,4 @@
-"""Closed-form checks of the pinhole camera and lamp-spot optics (rig.optics).
+"""Closed-form checks of the pinhole camera and lamp-spot optics (rig.physics.optics).
 
 The speed of roi_inside_spot is a benchmark (benchmarks/hot_paths.py), not a test.
 """
@@ -8,14 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from drivers.interfaces import Window
-from rig.geometry import camera_unit, inverse_deg, sample_frame
-from rig.optics import (CameraOptics, in_beam, intersect_sample_plane, pixel_rays,
-                        roi_inside_spot)
-from rig.rigconfig import RigConfig
+from rig.config.rigfile import RigConfig, camera_optics
+from rig.core.values import Window
+from rig.physics.geometry import camera_unit, inverse_deg, sample_frame
+from rig.physics.optics import in_beam, intersect_sample_plane, pixel_rays, roi_inside_spot
 
 CFG = RigConfig()
-OPTICS = CameraOptics.from_config(CFG)
+OPTICS = camera_optics(CFG)
 FULL = Window(0, 0, OPTICS.width_px, OPTICS.height_px)
 R_SPOT = CFG.geometry.spot_diameter_m / 2
 #: Size of one pixel on a fronto-parallel plane through the origin (m).

@@ -6,14 +6,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig import geometry as geo
-from rig.campaign import load_campaign, parse_campaign
-from rig.motion import move_time_s
-from rig.optics import CameraOptics, roi_inside_spot
-from rig.ordering import (START_DEG, arm_branches, choose_branches, nearest_neighbour, open_path, order_plan,
-                          trapezoid_time_s, travel_time_s, two_opt)
-from rig.plan import build_plan, estimate_rig_time_s, rig_time_comparison
-from rig.rigconfig import AxesConfig, AxisConfig, RigConfig
+from rig.config.campaign import load_campaign, parse_campaign
+from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig, camera_optics
+from rig.core.motion import move_time_s
+from rig.physics import geometry as geo
+from rig.physics.optics import roi_inside_spot
+from rig.planning.ordering import (
+    START_DEG,
+    arm_branches,
+    choose_branches,
+    nearest_neighbour,
+    open_path,
+    order_plan,
+    trapezoid_time_s,
+    travel_time_s,
+    two_opt,
+)
+from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
 
 ROOT = Path(__file__).resolve().parents[1]
 RIG = RigConfig()
@@ -98,7 +107,7 @@ def test_switched_branch_keeps_the_roi_lit(paper):
     """The other branch turns the image by 180° about the optical axis: the central ROI stays lit."""
     c, _, opt = paper
     m = np.radians(np.array([p.motors_deg for p in opt.points]))
-    assert np.all(roi_inside_spot(*m.T, c.capture.roi_px, CameraOptics.from_config(RIG),
+    assert np.all(roi_inside_spot(*m.T, c.capture.roi_px, camera_optics(RIG),
                                   RIG.geometry.spot_diameter_m / 2))
 
 

@@ -7,13 +7,13 @@ import time
 from collections import deque
 
 import pytest
+from rig.drivers.p9710 import P9710
+from rig.simulators.p9710_peer import FAULTS, P9710Peer, PtyLinePeer, range_for
+from rig.simulators.world import SimWorld
 
-from drivers.interfaces import DeviceError
-from drivers.p9710 import P9710
-from rig.brdf_models import get_model
-from rig.rigconfig import MeterConfig, RigConfig, SimulationConfig
-from simulators.p9710_peer import FAULTS, P9710Peer, PtyLinePeer, range_for
-from simulators.world import SimWorld
+from rig.config.rigfile import MeterConfig, RigConfig, SimulationConfig
+from rig.core.errors import DeviceError
+from rig.physics.brdf_models import get_model
 
 CAL = 1.0e9
 CONNECT = [(b"GI\n", b"P9710 V5.6\n"), (b"TT\n", b"12345\n"), (b"GK\n", b"VL-3701\n"), (b"SB1\n", b"OK\n")]

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from rig.pipeline import brdf_from_luminance
+from rig.physics.pipeline import brdf_from_luminance
 
 
 def test_closed_form_at_60_degrees():

@@ -5,11 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig import geometry as geo
-from rig.campaign import load_campaign, parse_campaign
-from rig.geometry import AxisLimits
-from rig.plan import SKIP_REASONS, build_plan, estimate_rig_time_s, move_time_s, viewing_directions
-from rig.rigconfig import AxesConfig, AxisConfig, RigConfig
+from rig.config.campaign import load_campaign, parse_campaign
+from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig
+from rig.physics import geometry as geo
+from rig.physics.geometry import AxisLimits
+from rig.planning.plan import build_plan, estimate_rig_time_s, move_time_s, viewing_directions
+from rig.planning.points import SKIP_REASONS
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLE2_THETA = [3.3, 10.7, 21.3, 34.8, 50.8, 69.3]

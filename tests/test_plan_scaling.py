@@ -2,7 +2,7 @@
 
 Not timed: the tests count operations, so they fail on a super-linear algorithm whatever the
 machine: the move times the ordering evaluates (an n × n cost matrix over all series or views is
-quadratic) and the Python lines run in rig.plan and rig.ordering (a scan of every point per
+quadratic) and the Python lines run in rig.planning.plan and rig.planning.ordering (a scan of every point per
 series is quadratic). Doubling the size may at most about double the count: count(2N) ≤ 2.2 × count(N)
 (a linear algorithm gives 2.0; before the fix the cost matrices and the angles between views grew
 4×, the lines 2.5×).
@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rig import geometry as geo
-from rig import ordering, plan
-from rig.campaign import parse_campaign
-from rig.ordering import (
+from rig.config.campaign import parse_campaign
+from rig.config.rigfile import RigConfig
+from rig.physics import geometry as geo
+from rig.planning import ordering, plan
+from rig.planning.ordering import (
     BLOCK_NODES,
     START_DEG,
     arm_branches,
@@ -30,7 +31,6 @@ from rig.ordering import (
     order_views,
     travel_time_s,
 )
-from rig.rigconfig import RigConfig
 
 RIG = RigConfig()
 #: The real one, for the wrapper that counts its evaluations.
@@ -40,7 +40,7 @@ LINEAR = 2.2
 
 
 def moves_evaluated(monkeypatch, fn: Callable[..., Any], *args: Any) -> tuple[int, Any]:
-    """Number of move times rig.ordering evaluates in fn(*args), and what it returns."""
+    """Number of move times rig.planning.ordering evaluates in fn(*args), and what it returns."""
     count = 0
 
     def counted(axes, start_deg, target_deg):

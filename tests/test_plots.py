@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from rig import plots
-from rig.cli import main
-from rig.dataset import load
+from rig.analysis import plots
+from rig.cli.main import main
+from rig.data.dataset import load
 
 CAMPAIGN = Path(__file__).resolve().parent / "campaigns" / "e2e-reduced.yaml"
 FIT_RGB = np.array([0xD6, 0x27, 0x28]) / 255          # plots.FITTED

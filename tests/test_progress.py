@@ -6,14 +6,15 @@ import io
 import re
 
 import pytest
+from rig.simulators.rig import SimulatedRig
 
-from rig.campaign import parse_campaign
-from rig.dataset import DatasetWriter
-from rig.plan import build_plan
-from rig.progress import ProgressBar
-from rig.rigconfig import RigConfig
-from rig.runner import Progress, Runner
-from simulators.rig import SimulatedRig
+from rig.acquisition.engine import Runner
+from rig.acquisition.progress import ProgressBar
+from rig.config.campaign import parse_campaign
+from rig.config.rigfile import RigConfig
+from rig.core.values import Progress
+from rig.data.dataset import DatasetWriter
+from rig.planning.plan import build_plan
 
 
 def test_rig_time_eta_at_ten_percent_is_within_30_percent_of_the_remaining_rig_time(tmp_path):

@@ -20,11 +20,11 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rig import diskspace
-from rig.alta import write_alta
-from rig.cli import main
-from rig.dataset import DatasetError, load
-from rig.folderlock import LOCK_NAME
+from rig.acquisition import diskspace
+from rig.cli.main import main
+from rig.data.alta import write_alta
+from rig.data.dataset import DatasetError, load
+from rig.data.folderlock import LOCK_NAME
 
 TINY = {
     "name": "tiny",

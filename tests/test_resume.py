@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 from rig_process import pending_points, start_rig, wait_until
 
-from rig.campaign import load_campaign
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig
+from rig.planning.plan import build_plan
 
 CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
@@ -48,7 +48,7 @@ def planned_ids():
 
 
 def resume_to_completion(folder: Path, *extra) -> subprocess.CompletedProcess:
-    proc = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(folder), "--quiet", *extra],
+    proc = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(folder), "--quiet", *extra],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     return proc
@@ -112,7 +112,7 @@ def test_resume_refuses_a_changed_campaign_unless_forced(tmp_path, planned_ids):
     signal_after(proc, out, 10, signal.SIGTERM)
     proc.wait(timeout=60)
     campaign.write_text(campaign.read_text() + "\n# edited\n")
-    refused = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(out)],
+    refused = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(out)],
                              capture_output=True, text=True, timeout=60)
     assert refused.returncode == 2 and "changed since the run started" in refused.stderr
     assert manifest(out)["status"] == "interrupted"       # refusing touched nothing
@@ -122,14 +122,14 @@ def test_resume_refuses_a_changed_campaign_unless_forced(tmp_path, planned_ids):
 
 def test_resume_of_a_complete_dataset_is_refused(tmp_path):
     out = tmp_path / "ds"
-    assert subprocess.run([sys.executable, "-m", "rig.cli", "run", str(CAMPAIGN), "--out", str(out), "--quiet"],
+    assert subprocess.run([sys.executable, "-m", "rig.cli.main", "run", str(CAMPAIGN), "--out", str(out), "--quiet"],
                           capture_output=True, timeout=120).returncode == 0
-    proc = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(out)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "nothing to resume" in proc.stderr
 
 
 def test_resume_of_a_folder_without_dataset(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "rig.cli", "run", "--resume", str(tmp_path)],
+    proc = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(tmp_path)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "no readable dataset.json" in proc.stderr

@@ -4,12 +4,12 @@ from pathlib import Path
 
 import pytest
 import yaml
+from rig.simulators.clock import SimClock
 
-from drivers.factory import connect_devices, vendor_camera
-from drivers.interfaces import DeviceError
-from rig.cli import main
-from rig.rigconfig import RigConfig, RigConfigError, load_rig_config
-from simulators.clock import SimClock
+from rig.cli.main import main
+from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
+from rig.core.errors import DeviceError
+from rig.devices import connect_devices, vendor_camera
 
 RIGS = Path(__file__).resolve().parents[1] / "campaigns" / "rigs"
 
@@ -111,7 +111,7 @@ def test_bad_addresses_are_refused(tmp_path, device, address):
                                      "modbus-rtu://COM3", "modbus-rtu://socket://10.0.0.5:4001"])
 def test_good_positioner_addresses_load(tmp_path, address):
     """What the rig file accepts, the driver can open (it does not connect until asked)."""
-    from drivers.modbus_axis import modbus_client
+    from rig.drivers.modbus_axis import modbus_client
 
     f = tmp_path / "rig.yaml"
     f.write_text(yaml.safe_dump({"devices": {"arm": {"address": address}}}))
@@ -140,7 +140,8 @@ def test_non_finite_and_insane_rig_values_are_refused(tmp_path, text, key):
 
 
 PLUGIN = '''
-from drivers.interfaces import Frame, LuminanceCamera
+from rig.core.values import Frame
+from rig.drivers.interfaces import LuminanceCamera
 
 
 class Good(LuminanceCamera):
@@ -201,14 +202,14 @@ def plugin(tmp_path, monkeypatch):
     ("Missing", "cannot load camera driver"),
 ])
 def test_camera_plugin_is_checked_before_connecting(plugin, cls, rule):
-    from drivers.factory import check_devices
+    from rig.devices import check_devices
 
     with pytest.raises(RigConfigError, match=f"'devices.camera.driver'.*{rule}"):
         check_devices(plugin(cls))
 
 
 def test_good_camera_plugin_passes_and_builds(plugin):
-    from drivers.factory import check_devices
+    from rig.devices import check_devices
 
     cfg = plugin("Good")
     check_devices(cfg)
@@ -223,7 +224,7 @@ def test_camera_plugin_failing_to_start_is_a_device_error(plugin):
 
 
 def test_uninstalled_camera_plugin_is_bad_input_before_connecting():
-    from drivers.factory import check_devices
+    from rig.devices import check_devices
 
     with pytest.raises(RigConfigError, match="cannot load camera driver 'python:mylab.lmk:LmkCamera'"):
         check_devices(load_rig_config(RIGS / "example-lab.yaml"))
@@ -236,7 +237,7 @@ def test_uninstalled_camera_plugin_is_bad_input_before_connecting():
                                             "lamp": {"address": "/dev/ttyUSB1"}, "meter": {"address": "COM4"}},
                                            "devices.camera.driver")])
 def test_hardware_rig_without_addresses_or_camera_is_bad_input(devices, key):
-    from drivers.factory import check_devices
+    from rig.devices import check_devices
 
     cfg = RigConfig.model_validate({"simulated": False, "devices": devices})
     with pytest.raises(RigConfigError, match=f"'{key}'.*only .* the simulated rig"):

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from rig.roi import block_means, mean_noise, roi_statistics
+from rig.physics.roi import block_means, mean_noise, roi_statistics
 
 
 def test_block_means_tile_from_the_corner_and_drop_partial_blocks():

@@ -11,17 +11,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from rig.simulators.rig import SimulatedRig
 
-from drivers.interfaces import DeviceError
-from rig.campaign import parse_campaign
-from rig.cli import main
-from rig.execute import manifest_for
-from rig.dataset import DatasetWriter
-from rig.images import read_luminance_exr
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
-from rig.runner import Runner
-from simulators.rig import SimulatedRig
+from rig.acquisition.engine import Runner
+from rig.acquisition.execute import manifest_for
+from rig.cli.main import main
+from rig.config.campaign import parse_campaign
+from rig.config.rigfile import RigConfig
+from rig.core.errors import DeviceError
+from rig.data.dataset import DatasetWriter
+from rig.data.images import read_luminance_exr
+from rig.planning.plan import build_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -302,7 +302,7 @@ def test_cli_requires_simulated_brdf_on_simulated_rig(tmp_path, capsys):
 
 def test_manifest_carries_campaign_and_truth(tmp_path):
     path = ROOT / "campaigns" / "quick.yaml"
-    from rig.campaign import load_campaign
+    from rig.config.campaign import load_campaign
     m = manifest_for(load_campaign(path), path, RigConfig())
     assert m["campaign"]["content"]["name"] == "quick"
     assert m["simulated_brdf"]["params"]["n"] == 24.0
@@ -311,8 +311,8 @@ def test_manifest_carries_campaign_and_truth(tmp_path):
 
 
 def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
-    from rig.collisions import CollisionsConfig, ForbiddenZone
-    from rig.runner import CollisionError
+    from rig.acquisition.engine import CollisionError
+    from rig.config.zones import CollisionsConfig, ForbiddenZone
     zone = ForbiddenZone(name="lamp_lever", description="test", arm_azimuth=(40.0, 50.0), arm_polar=(-10.0, 10.0))
     rig_cfg = RigConfig(collisions=CollisionsConfig(zones=[zone]))
     campaign = small_campaign()
@@ -328,7 +328,7 @@ def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
 
 def test_next_move_starts_before_the_point_is_merged_and_written(tmp_path, monkeypatch):
     """Merging (a second for a full frame) and writing overlap the move to the next point."""
-    import rig.runner as runner_module
+    import rig.acquisition.engine as runner_module
     log = []
     reduce = runner_module.reduce_point
     monkeypatch.setattr(runner_module, "reduce_point", lambda acq: (log.append("merge"), reduce(acq))[1])

@@ -13,9 +13,9 @@ import pytest
 from annotated_types import Ge, Gt, Le, Lt
 from pydantic import BaseModel
 
-from rig import campaign as campaign_module
-from rig.dataset import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS, DatasetWriter
-from rig.plan import SKIP_REASONS
+from rig.config import campaign as campaign_module
+from rig.data.dataset import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS, DatasetWriter
+from rig.planning.points import SKIP_REASONS
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -111,7 +111,7 @@ def test_docs_name_every_skip_reason(doc):
     assert not [r for r in SKIP_REASONS if f"`{r}" not in text]
 
 
-# -- docs/campaign.md against rig.campaign ---------------------------------------------------------
+# -- docs/campaign.md against rig.config.campaign ---------------------------------------------------------
 
 def campaign_keys(model: type[BaseModel] = campaign_module.Campaign, prefix: str = "") -> dict:
     """Dotted key → pydantic field of every campaign key, nested sections and list entries included."""

@@ -4,10 +4,11 @@ holds exactly the fault-free run's points, values within uncertainty, nothing lo
 
 from pathlib import Path
 
-from rig.campaign import load_campaign
-from rig.rigconfig import RigConfig
-from simulators.faults import FaultSchedule
-from simulators.soak import compare, run_fault_free, run_with_faults
+from rig.simulators.faults import FaultSchedule
+
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig
+from rig.session.soak import compare, run_fault_free, run_with_faults
 
 CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 

@@ -21,18 +21,21 @@ from typing import Callable
 
 import pytest
 import yaml
+from rig.drivers.interfaces import RigDevices
+from rig.drivers.wallclock import WallClock
+from rig.simulators.clock import SimClock
+from rig.simulators.rig import SimulatedRig
 from rig_process import events_text, start_rig, wait_until
 
-from drivers.interfaces import DeviceError, RigDevices
-from drivers.wallclock import WallClock
-from rig.campaign import Campaign, parse_campaign
-from rig.dataset import DatasetWriter
-from rig.execute import execute
-from rig.plan import build_plan
-from rig.rigconfig import RigConfig
-from rig.runner import Progress, Runner
-from simulators.clock import SimClock
-from simulators.rig import SimulatedRig
+from rig.acquisition.engine import Runner
+from rig.acquisition.execute import execute
+from rig.config.campaign import Campaign, parse_campaign
+from rig.config.rigfile import RigConfig
+from rig.core.errors import DeviceError
+from rig.core.values import Progress
+from rig.data.dataset import DatasetWriter
+from rig.planning.plan import build_plan
+from rig.session.connect import open_campaign_rig
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
@@ -275,7 +278,7 @@ def test_signals_landing_in_the_exit_path_cannot_cut_it_short(tmp_path, monkeypa
             os.kill(os.getpid(), signal.SIGINT)
     c, rig = campaign(), RigConfig()
     handler = signal.getsignal(signal.SIGINT)
-    outcome = execute(c, None, rig, build_plan(c, rig), tmp_path / "ds", progress=first_ctrl_c, handle_signals=True)
+    outcome = execute(c, None, rig, build_plan(c, rig), tmp_path / "ds", open_campaign_rig(c, rig), progress=first_ctrl_c, handle_signals=True)
     assert signal.getsignal(signal.SIGINT) is handler               # restored afterwards
     assert outcome.status == "interrupted" and lamp_was_on == [True, False]
     folder = tmp_path / "ds"

@@ -1,0 +1,160 @@
+"""Run one campaign end to end: dataset folder, rig, runner; used by `rig run` and the benches."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from rig import __version__
+from rig.acquisition.engine import Runner
+from rig.config.campaign import Campaign, campaign_sha256
+from rig.config.rigfile import RigConfig
+from rig.core.values import ProgressCallback
+from rig.data.dataset import DatasetWriter
+from rig.drivers.interfaces import RigDevices
+from rig.planning.points import Plan
+
+
+def manifest_for(campaign: Campaign, campaign_path: Path | None, rig: RigConfig) -> dict:
+    """The manifest a new dataset starts with (docs/dataset.md: campaign, sample, rig, software, truth)."""
+    manifest = {
+        "campaign": {"name": campaign.name, "file": str(campaign_path) if campaign_path else None,
+                     "sha256": campaign_sha256(campaign_path) if campaign_path else None,
+                     "content": campaign.model_dump(mode="json")},
+        "sample": campaign.sample.model_dump(mode="json", exclude={"simulated_brdf"}),
+        "rig": {"name": rig.name, "simulated": rig.simulated, "config": rig.model_dump(mode="json")},
+        "software": {"name": "rig", "version": __version__},
+        "counts": {},
+    }
+    if rig.simulated and campaign.sample.simulated_brdf is not None:
+        manifest["simulated_brdf"] = campaign.sample.simulated_brdf.model_dump(mode="json")
+    return manifest
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    status: str                 # complete | interrupted | failed
+    measured: int
+    rig_time_s: float
+    wall_s: float
+    out: Path
+    error: str | None = None
+
+
+class SignalRequests:
+    """Ctrl+C and SIGTERM as flags for the runner, kept until there is one (the rig may still be connecting).
+
+    Handlers only set flags and write one line to the terminal with os.write (no Python I/O,
+    no device I/O, no exception): whatever the main thread is doing when a signal lands,
+    the handler cannot tear it, and the runner's exit path runs to its end.
+    """
+
+    def __init__(self) -> None:
+        self.runner: Runner | None = None
+        self.stop: str | None = None
+        self.abort: str | None = None
+
+    def attach(self, runner: Runner) -> None:
+        self.runner = runner
+        self._forward()
+
+    def _forward(self) -> None:
+        if self.runner is not None:
+            if self.stop:
+                self.runner.request_stop(self.stop)
+            if self.abort:
+                self.runner.request_abort(self.abort)
+
+    def on_sigint(self, signum: int, frame: object) -> None:
+        """First Ctrl+C: finish the point, park, lamp off. Again: stop the axes now."""
+        if self.stop is None:
+            self.stop = "Ctrl+C"
+            _say("stopping after the point in flight: park, lamp off (Ctrl+C again: stop the axes now)")
+        elif self.abort is None:
+            self.abort = "Ctrl+C again"
+            _say("stopping the axes now, lamp off")
+        self._forward()
+
+    def on_sigterm(self, signum: int, frame: object) -> None:
+        if self.abort is None:
+            self.abort = "SIGTERM"
+            _say("SIGTERM: stopping the axes now, lamp off")
+        self._forward()
+
+
+def _say(message: str) -> None:
+    """One line on stderr from a signal handler: a raw write, never re-entering a Python stream."""
+    try:
+        os.write(2, f"\nrig: {message}\n".encode())
+    except OSError:      # no terminal to tell: the flags are what matters
+        pass
+
+
+@contextmanager
+def stop_on_signals(requests: SignalRequests) -> Iterator[None]:
+    """SIGINT and SIGTERM go to `requests` for the duration of the block (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {sig: signal.signal(sig, handler) for sig, handler in ((signal.SIGINT, requests.on_sigint),
+                                                                    (signal.SIGTERM, requests.on_sigterm))}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
+            devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None = None, *,
+            writer: DatasetWriter | None = None, done_rows: Sequence[dict] = (),
+            handle_signals: bool = False) -> RunOutcome:
+    """Measure `plan` into a new dataset folder `out` (DatasetError if it cannot be created),
+    or into `writer`'s reopened folder, leaving out `done_rows` (a resume).
+
+    `devices` is entered only once the dataset folder exists (the caller decides which rig:
+    rig.session.connect.open_campaign_rig gives the simulated or the real one).
+
+    Device and other failures do not raise: they end as status `failed` with the
+    completed points kept; the runner has already made the rig safe.
+    """
+    requests = SignalRequests()
+    with stop_on_signals(requests) if handle_signals else nullcontext():
+        return _execute(campaign, campaign_path, rig, plan, out, devices, progress, writer, done_rows, requests)
+
+
+def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
+             devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None,
+             writer: DatasetWriter | None, done_rows: Sequence[dict], requests: SignalRequests) -> RunOutcome:
+    """`execute` with the signals already routed to `requests`."""
+    if writer is None:
+        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
+        writer.write_skipped(plan.skipped)
+    wall0 = time.perf_counter()
+    runner = None
+    try:
+        with devices as opened:
+            runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows)
+            requests.attach(runner)
+            status = runner.run()
+        error = None
+    except KeyboardInterrupt:    # signals not handled here (handle_signals=False): Python's default Ctrl+C
+        status, error = "interrupted", None
+        if runner is None:       # before the run: nothing was switched on; say how it ended
+            writer.event("interrupted", graceful=False)
+            writer.update_manifest(status="interrupted")
+    except Exception as exc:
+        status, error = "failed", f"{exc}"
+        if runner is None:       # the rig never came up, so no runner recorded the failure
+            writer.event("failed", error=error)
+            writer.update_manifest(status="failed", error=error)
+    finally:
+        writer.close()
+    return RunOutcome(status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
+                      time.perf_counter() - wall0, out, error)

@@ -1,0 +1,107 @@
+"""A one-line progress bar with ETA for terminal runs (plain lines when not a terminal).
+
+On a terminal every redraw returns to the start of the line and fits in the terminal's
+width (asked at each redraw, so a resized window is followed): a line that wrapped could
+not be redrawn in place, and the bar would scroll.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from typing import TextIO
+
+from rig.core.values import Progress
+
+#: Widest bar (characters between the brackets); narrower terminals get a shorter one, or none.
+BAR_WIDTH = 30
+#: Narrowest bar worth drawing; with less room the line is the text alone.
+MIN_BAR_WIDTH = 5
+#: Room kept beside the bar for the counts and both ETAs ("1865/1865 100%  rig 0:54:17  ETA 0:00:20 wall,
+#: 0:54:17 rig" is 58 characters); the message gets what is left.
+TEXT_ROOM = 58
+
+
+def format_duration(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}:{m:02d}:{s:02d}"
+
+
+def terminal_columns(stream: TextIO) -> int:
+    """Width of the terminal `stream` writes to; else shutil's answer (COLUMNS, stdout's terminal, 80)."""
+    try:
+        columns = os.get_terminal_size(stream.fileno()).columns
+    except (AttributeError, OSError, ValueError):     # no file descriptor, or not a terminal
+        columns = 0
+    return columns if columns > 0 else shutil.get_terminal_size().columns
+
+
+class ProgressBar:
+    """Callable for Runner(progress=...): redraws at most every `min_interval_s`.
+
+    `columns`: a fixed width (tests); None asks the terminal at every redraw. The wall-time
+    ETA converts the runner's rig-time ETA at the wall seconds per rig second seen since the
+    first point (the simulated rig runs many rig seconds per wall second, hardware one).
+    """
+
+    def __init__(self, stream: TextIO = sys.stderr, min_interval_s: float = 0.1, columns: int | None = None):
+        self.stream = stream
+        self.min_interval_s = min_interval_s
+        self.columns = columns
+        self.tty = stream.isatty()
+        self._last_draw = 0.0
+        self._last_tenth = -1
+        self._first_done: int | None = None                     # points done at the first report (a resume)
+        self._rate_origin: tuple[float, float] | None = None    # (wall, rig time) at the first point measured
+
+    def _eta(self, p: Progress, now: float) -> str:
+        if p.eta_rig_s is None:
+            return "ETA --"
+        rig = f"{format_duration(p.eta_rig_s)} rig"
+        if self._rate_origin is None or p.rig_time_s <= self._rate_origin[1]:
+            return f"ETA {rig}"
+        wall0, rig0 = self._rate_origin
+        wall_per_rig = (now - wall0) / (p.rig_time_s - rig0)
+        return f"ETA {format_duration(p.eta_rig_s * wall_per_rig)} wall, {rig}"
+
+    def _line(self, p: Progress, frac: float, now: float, columns: int | None) -> str:
+        """The progress line; with `columns`, at most columns - 1 characters (the last column would wrap).
+
+        The bar's width depends on the terminal's alone, so it does not jump between redraws;
+        a narrow terminal shortens it (down to MIN_BAR_WIDTH, then none) before the counts
+        and the ETA, and the message's end is cut last.
+        """
+        width = BAR_WIDTH if columns is None else min(BAR_WIDTH, columns - 1 - len("[] ") - TEXT_ROOM)
+        bar = f"[{'#' * round(frac * width)}{'.' * (width - round(frac * width))}] " if width >= MIN_BAR_WIDTH else ""
+        line = (f"{bar}{p.done}/{p.total} {frac:4.0%}  rig {format_duration(p.rig_time_s)}  {self._eta(p, now)}"
+                + (f"  {p.message}" if p.message else ""))
+        return line if columns is None else line[:max(columns - 1, 0)]
+
+    def __call__(self, p: Progress) -> None:
+        now = time.monotonic()
+        if self._first_done is None:
+            self._first_done = p.done
+        if self._rate_origin is None and p.done > self._first_done:
+            self._rate_origin = (now, p.rig_time_s)
+        finished = p.total and p.done >= p.total
+        if self.tty and not finished and now - self._last_draw < self.min_interval_s:
+            return
+        frac = p.done / p.total if p.total else 1.0
+        if not self.tty:                      # logs and CI: one line per 10 %
+            tenth = int(frac * 10)
+            if tenth == self._last_tenth:
+                return
+            self._last_tenth = tenth
+        self._last_draw = now
+        if self.tty:
+            columns = self.columns or terminal_columns(self.stream)
+            self.stream.write("\r" + self._line(p, frac, now, columns).ljust(max(columns - 1, 0)))
+            if finished:
+                self.stream.write("\n")
+        else:
+            self.stream.write(self._line(p, frac, now, None) + "\n")
+        self.stream.flush()

@@ -1,0 +1,215 @@
+"""`rig run --resume DIR`: continue an interrupted or failed campaign in its dataset folder.
+
+Same plan, same point ids, no duplicate rows. The campaign file must be the one
+the dataset was started with (sha256 in the manifest) unless forced; the rig
+configuration is the manifest's. Points written ahead as `point_pending` (their
+closing E⊥ reading never came) are appended first, with the E⊥ they had.
+
+The folder is locked first (one writer, rig/folderlock.py); everything it holds is
+checked before anything is appended, and a malformed file is refused (exit 2) with
+its name and line. A corrupt line in the middle of events.jsonl is refused rather
+than skipped: it may be a `point_pending` record (skipping it only costs a
+re-measurement) but it may as well be a `points_discarded` one, and skipping that
+would bring back points measured while the lamp jumped. Only the user can tell,
+so the message says which line to repair or delete.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
+from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
+from rig.config.rigfile import RigConfig
+from rig.data.dataset import (
+    BRDF_COLUMNS,
+    DatasetWriter,
+    complete_lines,
+    folder_size,
+    numeric_columns,
+    read_brdf_table,
+    utc_now,
+)
+from rig.devices import check_devices
+from rig.planning.plan import build_plan
+from rig.planning.points import Plan
+
+_TEXT_FIELDS = ("point_id", "flags", "time_utc")
+
+
+class ResumeError(CampaignError):
+    """The folder cannot be resumed; the message says why and what to do."""
+
+
+@dataclass
+class Resumption:
+    writer: DatasetWriter
+    campaign: Campaign
+    campaign_path: Path
+    rig: RigConfig
+    plan: Plan
+    done_rows: list[dict]
+
+
+def _rows(folder: Path) -> list[dict]:
+    """The rows of brdf.csv, checked: the exact columns this version appends, finite numbers."""
+    table = read_brdf_table(folder)
+    if tuple(table.header) != BRDF_COLUMNS:
+        raise ResumeError(f"{table.path}:1: its columns are not the ones this version of rig appends, "
+                          "so rows cannot be added to it")
+    numeric_columns(table)
+    return table.rows
+
+
+def _row_problem(row: Any) -> str | None:
+    """What is wrong with a written-ahead row, or None if it can be appended as it is."""
+    if not isinstance(row, dict):
+        return "its row is not an object"
+    missing = [c for c in BRDF_COLUMNS if c not in row]
+    if missing:
+        return f"its row lacks {', '.join(missing[:3])}{' …' if len(missing) > 3 else ''}"
+    for column in BRDF_COLUMNS:
+        value = row[column]
+        if column in _TEXT_FIELDS:
+            ok = isinstance(value, str)
+        elif column == "exposures_s":
+            ok = isinstance(value, list) and all(_finite(v) for v in value)
+        else:
+            ok = _finite(value)
+        if not ok:
+            return f"its row's {column} is {str(value)[:40]!r}"
+    return None
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _corrupt(path: Path, lineno: int, what: str) -> ResumeError:
+    return ResumeError(f"{path}:{lineno}: {what}; resuming past it could lose a point written ahead or bring "
+                       "back discarded ones, so nothing was changed: repair or delete that line, then resume again")
+
+
+def _pending_rows(folder: Path) -> dict[str, dict]:
+    """Rows written ahead in events.jsonl and not discarded later, by point id (the last one wins)."""
+    path = folder / "events.jsonl"
+    text, _ = complete_lines(path, path.read_bytes())      # reopen has cut a torn last line
+    pending: dict[str, dict] = {}
+    for lineno, line in enumerate(text.split("\n")[:-1], start=1):
+        try:
+            event = json.loads(line)
+        except (json.JSONDecodeError, RecursionError):
+            raise _corrupt(path, lineno, "not valid JSON") from None
+        if not isinstance(event, dict):
+            raise _corrupt(path, lineno, "not a JSON object")
+        kind = event.get("event")
+        if kind == "point_pending":
+            problem = _row_problem(event.get("row"))
+            if problem:
+                raise _corrupt(path, lineno, f"a point_pending record whose {problem.removeprefix('its ')}")
+            pending[event["row"]["point_id"]] = event["row"]
+        elif kind == "points_discarded":
+            ids = event.get("point_ids")
+            if not isinstance(ids, list) or not all(isinstance(i, str) for i in ids):
+                raise _corrupt(path, lineno, "a points_discarded record without a list of point ids")
+            for pid in ids:
+                pending.pop(pid, None)
+    return pending
+
+
+def find_campaign_file(folder: Path, info: dict) -> Path:
+    """The campaign file the run was started with.
+
+    New manifests hold its absolute path. An older, relative one is tried against the current
+    folder and every parent of the dataset folder (a run started from the project root with
+    `--out runs/x` has the campaign two levels up); among several candidates the one with the
+    recorded sha256 wins, else the first found (resume then refuses it as changed).
+    """
+    recorded = info.get("file")
+    if not isinstance(recorded, str) or not recorded:
+        raise ResumeError(f"{folder}: its manifest names no campaign file (an imported dataset, or not "
+                          "started by `rig run`): there is nothing to resume")
+    path = Path(recorded)
+    candidates = [path] if path.is_absolute() else [Path.cwd() / path,
+                                                    *(p / path for p in folder.resolve().parents)]
+    found = []
+    for candidate in candidates:
+        try:
+            if candidate.is_file():
+                if campaign_sha256(candidate) == info.get("sha256"):
+                    return candidate
+                found.append(candidate)
+        except OSError:
+            continue
+    if found:
+        return found[0]
+    where = "" if path.is_absolute() else " (looked in the current folder and the dataset folder's parents)"
+    raise ResumeError(f"{folder}: the campaign file {recorded!r} it was started with is not there{where}")
+
+
+def _manifest_part(folder: Path, manifest: dict, key: str, kind: type) -> Any:
+    value = manifest.get(key, kind())
+    if not isinstance(value, kind):
+        raise ResumeError(f"{folder / 'dataset.json'}: {key!r} is a {type(value).__name__}, "
+                          f"not a {kind.__name__}; cannot resume")
+    return value
+
+
+def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
+    folder = Path(folder)
+    writer = DatasetWriter.reopen(folder)
+    try:
+        manifest = writer.manifest
+        status = manifest.get("status")
+        if status == "complete":
+            raise ResumeError(f"{folder}: the campaign is complete; nothing to resume")
+        info = _manifest_part(folder, manifest, "campaign", dict)
+        resumes = _manifest_part(folder, manifest, "resumes", list)
+        rig_config = _manifest_part(folder, manifest, "rig", dict).get("config")
+        path = find_campaign_file(folder, info)
+        changed = campaign_sha256(path) != info.get("sha256")
+        if changed and not force:
+            raise ResumeError(f"{folder}: campaign file {path} changed since the run started (sha256 differs); "
+                              "resuming would mix two campaigns. Use --force to resume with the file as it is now")
+        campaign = load_campaign(path)
+        try:
+            rig = RigConfig.model_validate(rig_config)
+        except ValueError as exc:
+            raise ResumeError(f"{folder / 'dataset.json'}: rig.config is not a valid rig configuration "
+                              f"({str(exc).splitlines()[0]})") from None
+        check_campaign_for_rig(campaign, rig, path)
+        check_devices(rig, folder / "dataset.json")
+        plan = build_plan(campaign, rig)
+        done = _rows(folder)
+        done_ids = {r["point_id"] for r in done}
+        unknown = done_ids - {p.point_id for p in plan.points}
+        if unknown and not force:
+            raise ResumeError(f"{folder}: {len(unknown)} measured points are not in the campaign's plan "
+                              f"(e.g. {sorted(unknown)[0]}); use --force to resume anyway")
+        recovered = [row for pid, row in _pending_rows(folder).items() if pid not in done_ids]
+        left = len({p.point_id for p in plan.points} - done_ids) - len(recovered)
+        needed = estimate_dataset_bytes(max(left, 0), 0, rig, campaign.capture.save_images)
+        problem = space_problem(folder, needed, "free some space, or move the folder to a disk with room "
+                                                "and resume there")
+        if problem:
+            raise ResumeError(problem)
+        writer.space_needed_bytes = folder_size(folder) + needed
+        for row in recovered:
+            writer.append_row(row)
+        if recovered:
+            writer.event("pending_recovered", points=len(recovered),
+                         point_ids=[r["point_id"] for r in recovered])
+        done = _rows(folder)
+        writer.event("resume", previous_status=status, measured_before=len(done), campaign_changed=changed,
+                     torn_bytes_cut=writer.cut_bytes)
+        resumes = resumes + [{"time_utc": utc_now(), "previous_status": status,
+                              "measured_before": len(done), "forced": force and changed}]
+        writer.update_manifest(status="running", resumes=resumes)
+        return Resumption(writer, campaign, path, rig, plan, done)
+    except BaseException:
+        writer.close()
+        raise

@@ -1,0 +1,467 @@
+"""Fit a registry BRDF model to measured data: `fit`, `fit_dataset`, and the `rig fit` subcommand.
+
+Why it is built this way (Spieringhs et al. 2023 fitted with a genetic algorithm;
+their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
+
+* every free parameter lives on the unit cube: log-uniform between its bounds when the
+  model lists it in `log_scale` (exponents, tiny coefficients), affine otherwise, so one
+  finite-difference step and one Latin hypercube fit all of them and bounds stay reachable;
+* global stage: `differential_evolution` (Latin-hypercube population seeded with the
+  model's `typical` values) on a subsample, then bounded `least_squares` on all points
+  from its best member, from `typical` and from the next best distinct members, and a
+  polish of the best; plateaus where a lobe is too narrow to be seen trap local starts,
+  the population does not; the agreement of the starts is reported;
+* residuals are weighted by `u_brdf_per_sr` (χ² with a meaningful χ²/dof) or unweighted
+  (the paper's RMSE); `rig fit` chooses by the data (`choose_weighting`): weighted when every row
+  has a usable u, unweighted with a notice when none has (an imported ALTA file without #VS),
+  refused when only some have; robust losses (soft_l1, huber) take a scale estimated from the
+  residuals' MAD, so outliers (glints, dust) cost linearly while the noise keeps its
+  quadratic cost; a blind zone around retroreflection needs nothing special: the lobe's
+  shoulders carry its width and height;
+* standard errors come from the Jacobian at the optimum through the delta method, scaled
+  by the residual variance (unweighted), the MAD² (robust) or max(1, χ²/dof) (weighted);
+  directions the data do not constrain (a null space of the Jacobian) give `inf`, never NaN;
+* RMSE, NRMSE and NCC are always computed on the unweighted values (rig.analysis.metrics).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import differential_evolution, least_squares
+
+from rig.analysis.metrics import goodness_of_fit
+from rig.core.exits import EXIT_BAD_INPUT, EXIT_OK
+from rig.data.dataset import Dataset, DatasetError, load
+from rig.physics.brdf_models import MODELS, BrdfModel, get_model
+
+WEIGHTINGS = ("uncertainty", "none")
+LOSSES = ("linear", "soft_l1", "huber")
+#: Rows with these flags carry no usable BRDF value.
+UNUSABLE_FLAGS = ("roi_unlit", "roi_saturated")
+#: Points the global stage works on; the local runs always use all of them.
+GLOBAL_POINTS = 400
+#: differential_evolution population per free parameter, and its generations.
+DE_POPSIZE, DE_MAXITER = 15, 40
+#: A singular value below this fraction of the largest marks an unconstrained direction.
+RCOND = 1e-9
+#: A parameter whose weight in an unconstrained direction exceeds this is undetermined.
+NULL_WEIGHT = 1e-3
+#: Residual given to a non-finite model value, so a model's overflow steers the optimiser away.
+NONFINITE_RESIDUAL = 1e12
+#: Starts closer than this on the unit cube (max norm) are the same start.
+DISTINCT = 1e-3
+#: Starts within this relative cost of the best one, or within this fraction of the cost of a
+#: zero model (exact data have a best cost of ~0), count as having found it.
+SAME_COST_REL, SAME_COST_ABS = 1e-4, 1e-12
+
+
+@dataclass(frozen=True)
+class ParamSpace:
+    """A model's free parameters mapped onto [0, 1]^k; fixed ones are carried along."""
+
+    free: tuple[str, ...]
+    fixed: Mapping[str, float]
+    lo: np.ndarray        # bounds in the mapped coordinate: log10(p) for log-scaled, p otherwise
+    hi: np.ndarray
+    log: np.ndarray       # bool per free parameter
+
+    @classmethod
+    def of(cls, model: BrdfModel, fixed: Mapping[str, float] | None = None) -> ParamSpace:
+        fixed = dict(fixed or {})
+        unknown = sorted(set(fixed) - set(model.param_names))
+        if unknown:
+            raise ValueError(f"{model.name} has no parameter {', '.join(unknown)}; "
+                             f"its parameters: {', '.join(model.param_names)}")
+        for name, value in fixed.items():
+            lo, hi = model.bounds[name]
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"fixed {name} = {value} outside its bounds [{lo}, {hi}]")
+        free = tuple(p for p in model.param_names if p not in fixed)
+        if not free:
+            raise ValueError(f"every parameter of {model.name} is fixed: nothing to fit")
+        log = np.array([p in model.log_scale for p in free])
+        lo = np.array([model.bounds[p][0] for p in free], float)
+        hi = np.array([model.bounds[p][1] for p in free], float)
+        if not np.all(np.isfinite(lo) & np.isfinite(hi) & (lo < hi) & (~log | (lo > 0))):
+            raise ValueError(f"{model.name}: fitting needs finite bounds low < high, low > 0 in log space, "
+                             f"for {', '.join(free)}")
+        lo, hi = (np.where(log, np.log10(np.where(log, b, 1.0)), b) for b in (lo, hi))
+        return cls(free, fixed, lo, hi, log)
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        """Free parameter values at unit-cube point x."""
+        v = self.lo + (self.hi - self.lo) * x
+        return np.where(self.log, 10.0 ** v, v)
+
+    def params(self, x: np.ndarray) -> dict[str, float]:
+        return {**self.fixed, **dict(zip(self.free, map(float, self.values(x))))}
+
+    def to_unit(self, params: Mapping[str, float]) -> np.ndarray:
+        """Unit-cube point of the given free values, clipped into the box."""
+        p = np.array([params[name] for name in self.free], float)
+        v = np.where(self.log, np.log10(np.maximum(p, 10.0 ** self.lo)), p)
+        return np.clip((v - self.lo) / (self.hi - self.lo), 0.0, 1.0)
+
+    def jacobian_diag(self, x: np.ndarray) -> np.ndarray:
+        """dp/dx per free parameter, for the delta method."""
+        return (self.hi - self.lo) * np.where(self.log, self.values(x) * np.log(10.0), 1.0)
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of one fit; `to_json()` is what `rig fit --json` writes."""
+
+    model: str
+    params: dict[str, float]
+    stderr: dict[str, float]          # inf where the data do not determine the parameter; 0 when fixed
+    metrics: dict[str, float]         # rmse, nrmse, ncc (Eqs. 16, 19, 20), unweighted
+    chi2_dof: float | None            # weighted fits only
+    n_points: int
+    n_starts: int
+    n_starts_at_best: int             # local starts that reached the best cost: agreement of the global stage
+    converged: bool
+    message: str
+    nfev: int                         # model evaluations over all stages, finite differences included
+    wall_s: float
+    weighting: str
+    loss: str
+    f_scale: float | None             # robust-loss scale, in residual units
+    fixed: tuple[str, ...] = ()
+    at_bound: tuple[str, ...] = ()
+    undetermined: tuple[str, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-safe: non-finite numbers (undetermined stderr, NCC of a constant model) become null."""
+        return {
+            "model": self.model,
+            "params": self.params,
+            "stderr": {k: _finite_or_none(v) for k, v in self.stderr.items()},
+            "metrics": {k: _finite_or_none(v) for k, v in self.metrics.items()},
+            "diagnostics": {
+                "n_points": self.n_points, "weighting": self.weighting, "loss": self.loss,
+                "f_scale": self.f_scale, "chi2_dof": self.chi2_dof, "converged": self.converged,
+                "message": self.message, "n_starts": self.n_starts, "n_starts_at_best": self.n_starts_at_best,
+                "nfev": self.nfev, "wall_s": self.wall_s, "fixed": list(self.fixed),
+                "at_bound": list(self.at_bound), "undetermined": list(self.undetermined),
+            },
+        }
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def _rho(z2: np.ndarray, loss: str) -> np.ndarray:
+    """scipy's loss functions ρ(z²), so global-stage and local costs are the same number."""
+    if loss == "soft_l1":
+        return 2.0 * (np.sqrt(1.0 + z2) - 1.0)
+    if loss == "huber":
+        return np.where(z2 <= 1.0, z2, 2.0 * np.sqrt(z2) - 1.0)
+    return z2
+
+
+def _cost(r: np.ndarray, loss: str, scale: float) -> float:
+    return float(0.5 * scale ** 2 * np.sum(_rho((r / scale) ** 2, loss)))
+
+
+def mad_scale(r: np.ndarray) -> float:
+    """Robust standard deviation of residuals about zero: 1.4826 · median |r|."""
+    return float(1.4826 * np.median(np.abs(r)))
+
+
+def _starts(best: np.ndarray, typ: np.ndarray, ranked: np.ndarray, n: int) -> list[np.ndarray]:
+    """The global best, the typical values, then the best other members that differ, n in all."""
+    chosen: list[np.ndarray] = []
+    for x in (best, typ, *ranked):
+        if len(chosen) == max(n, 1):
+            break
+        if all(np.max(np.abs(x - c)) > DISTINCT for c in chosen):
+            chosen.append(x)
+    return chosen
+
+
+def _stderr(jac: np.ndarray, variance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Standard errors in unit-cube coordinates and the mask of undetermined parameters.
+
+    Covariance variance·(JᵀJ)⁺ restricted to the directions the data constrain; a
+    parameter with weight in an unconstrained direction gets inf.
+    """
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    ok = sv > RCOND * sv[0] if sv[0] > 0 else np.zeros_like(sv, bool)
+    undetermined = np.any(np.abs(vt[~ok]) > NULL_WEIGHT, axis=0)
+    cov = (vt[ok].T / sv[ok] ** 2) @ vt[ok] * variance
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return np.where(undetermined, np.inf, se), undetermined
+
+
+def _check_inputs(wi, wo, f, u, weighting: str, loss: str) -> tuple[np.ndarray, ...]:
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting {weighting!r}; allowed: {', '.join(WEIGHTINGS)}")
+    if loss not in LOSSES:
+        raise ValueError(f"loss {loss!r}; allowed: {', '.join(LOSSES)}")
+    wi, wo, f = (np.asarray(a, float) for a in (wi, wo, f))
+    if wi.shape != wo.shape or wi.shape != (len(f), 3):
+        raise ValueError(f"wi, wo must be (N, 3) with N = len(f) = {len(f)}, got {wi.shape} and {wo.shape}")
+    if not np.all(np.isfinite(f)):
+        raise ValueError("measured BRDF values must be finite")
+    if weighting == "none":
+        return wi, wo, f, np.ones_like(f)
+    if u is None:
+        raise ValueError("weighting by uncertainty needs u (u_brdf_per_sr); fit unweighted instead (--unweighted)")
+    u = np.asarray(u, float)
+    if u.shape != f.shape or not np.all(np.isfinite(u) & (u > 0)):
+        raise ValueError("uncertainties must be finite and > 0 for every point; fit unweighted instead (--unweighted)")
+    return wi, wo, f, u
+
+
+def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.ndarray | None = None, *,
+        weighting: str = "uncertainty", loss: str = "linear", starts: int = 4,
+        fixed: Mapping[str, float] | None = None, seed: int = 0) -> FitResult:
+    """Fit `model_name` to f(wi, wo) (SCS unit vectors, sr⁻¹) by bounded, transformed least squares.
+
+    weighting "uncertainty" minimises Σ((model − f)/u)², "none" the paper's Σ(model − f)².
+    `starts` local runs follow the global stage; `fixed` holds parameters at given values.
+    """
+    t0 = time.perf_counter()
+    model = get_model(model_name)
+    wi, wo, f, sigma = _check_inputs(wi, wo, f, u, weighting, loss)
+    space = ParamSpace.of(model, fixed)
+    k, n = len(space.free), len(f)
+    dof = n - k
+    if dof < 1:
+        raise ValueError(f"{n} points cannot determine {k} parameters")
+    rng = np.random.default_rng(seed)
+    nfev = 0
+
+    def residuals(x: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        nonlocal nfev
+        nfev += 1
+        with np.errstate(all="ignore"):
+            r = (model.evaluate(wi[rows], wo[rows], **space.params(x)) - f[rows]) / sigma[rows]
+        return np.where(np.isfinite(r), r, NONFINITE_RESIDUAL)
+
+    def scale_at(x: np.ndarray, rows: np.ndarray | slice) -> float:
+        """Robust-loss scale: MAD of the residuals, floored so noiseless data do not make it pure L1."""
+        return max(mad_scale(residuals(x, rows)), 1e-3 * float(np.median(np.abs(f / sigma))))
+
+    sub = np.sort(rng.choice(n, GLOBAL_POINTS, replace=False)) if n > GLOBAL_POINTS else slice(None)
+    x_typ = space.to_unit({**model.typical, **space.fixed})
+    scale = scale_at(x_typ, sub) if loss != "linear" else 1.0
+    glob = differential_evolution(lambda x: _cost(residuals(x, sub), loss, scale), [(0.0, 1.0)] * k,
+                                  popsize=DE_POPSIZE, maxiter=DE_MAXITER, x0=x_typ, polish=False, seed=rng)
+    if loss != "linear":
+        scale = scale_at(glob.x, slice(None))
+
+    def local(x0: np.ndarray, solver: str):
+        return least_squares(residuals, x0, bounds=(0.0, 1.0), loss=loss, f_scale=scale, tr_solver=solver)
+
+    # The starts use LSMR: the dense solver's SVD of the (N × k) Jacobian at every iteration runs
+    # on multithreaded BLAS and costs more than the model (5–50× on a loaded 2-core machine).
+    # The polish from the best start is dense: a few iterations, and it settles flat directions.
+    ranked = glob.population[np.argsort(glob.population_energies)]
+    runs = [local(x0, "lsmr") for x0 in _starts(glob.x, x_typ, ranked, starts)]
+    costs = np.array([_cost(r.fun, loss, scale) for r in runs])
+    final = runs[int(np.argmin(costs))]
+    zero_model_cost = _cost(f / sigma, loss, scale)
+    at_best = int(np.sum(costs <= costs.min() * (1 + SAME_COST_REL) + SAME_COST_ABS * zero_model_cost))
+    if loss != "linear":            # the M-estimator's scale, re-estimated at the solution
+        scale = scale_at(final.x, slice(None))
+    final = local(final.x, "exact")
+    x = final.x
+    r = residuals(x)
+    chi2_dof = float(np.sum(r ** 2) / dof) if weighting == "uncertainty" else None
+    variance = float(np.sum(r ** 2) / dof) if loss == "linear" else mad_scale(r) ** 2
+    if weighting == "uncertainty":
+        variance = max(variance, 1.0)       # u are standard uncertainties: inflate only, by the Birge ratio
+    se_x, undetermined = _stderr(final.jac, variance)
+    se = se_x * np.abs(space.jacobian_diag(x))
+    params = space.params(x)
+    with np.errstate(all="ignore"):
+        fr = model.evaluate(wi, wo, **params)
+    stderr = {p: float(se[space.free.index(p)]) if p in space.free else 0.0 for p in model.param_names}
+    return FitResult(
+        model=model.name, params={p: params[p] for p in model.param_names}, stderr=stderr,
+        metrics=goodness_of_fit(f, fr), chi2_dof=chi2_dof, n_points=n, n_starts=len(runs),
+        n_starts_at_best=at_best, converged=bool(final.status > 0), message=final.message, nfev=nfev,
+        wall_s=time.perf_counter() - t0, weighting=weighting, loss=loss,
+        f_scale=scale if loss != "linear" else None, fixed=tuple(space.fixed),
+        at_bound=tuple(p for p, a in zip(space.free, final.active_mask) if a != 0),
+        undetermined=tuple(p for p, u_ in zip(space.free, undetermined) if u_))
+
+
+def usable_rows(dataset: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS) -> np.ndarray:
+    """Mask of rows carrying none of `exclude_flags`."""
+    bad = set(exclude_flags)
+    return np.array([not bad.intersection(flags) for flags in dataset.flags], bool)
+
+
+def usable_u(u: np.ndarray) -> np.ndarray:
+    """Rows whose u can weight a fit: finite and > 0 (an import without #VS writes 0, flag no_uncertainty)."""
+    u = np.asarray(u, float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(u) & (u > 0)
+
+
+def choose_weighting(u: np.ndarray, point_ids: list[str], requested: str | None) -> tuple[str, str | None]:
+    """The weighting of a fit of these rows and, when it was chosen for the user, a one-line notice.
+
+    `requested` "uncertainty" (--weighted) or "none" (--unweighted) is obeyed; "uncertainty" needs a
+    usable u on every row. None (the default) lets the data decide: weighted when every row has u,
+    unweighted (said in the notice) when none has, as for an imported ALTA file without #VS.
+    When only some rows have u the choice is refused rather than guessed: weighting would need u
+    invented for the others, and fitting unweighted would silently drop the uncertainties the lab
+    measured and the χ²/dof that checks them; a mix usually means merged sources or a broken
+    budget, which the user should see. ValueError names the column, the count and a row.
+    """
+    if requested is not None and requested not in WEIGHTINGS:
+        raise ValueError(f"weighting {requested!r}; allowed: {', '.join(WEIGHTINGS)}")
+    has_u = usable_u(u)
+    n, n_u = len(has_u), int(np.count_nonzero(has_u))
+    if requested == "none":
+        return "none", None
+    if n_u == n:                # every row has u (or there is no row: fit_dataset then says so)
+        return "uncertainty", None
+    if requested is None and n_u == 0:
+        return "none", ("no row has an uncertainty (u_brdf_per_sr is 0 or missing): "
+                        "fitting unweighted (the paper's RMSE; no χ²/dof)")
+    example = point_ids[int(np.argmin(has_u))]
+    missing = f"{n - n_u} of {n} rows have no usable u_brdf_per_sr (finite, > 0), e.g. point {example}"
+    if requested == "uncertainty":
+        raise ValueError(f"--weighted needs u_brdf_per_sr on every row; {missing}; fit --unweighted instead")
+    raise ValueError(f"{missing}: choose --unweighted, or leave those rows out "
+                     "(--exclude-flag no_uncertainty for imported ones)")
+
+
+def fit_dataset(dataset: Dataset, model_name: str, *, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS,
+                **kwargs: Any) -> FitResult:
+    """`fit` on a dataset's achieved angles, leaving out rows with `exclude_flags`."""
+    keep = usable_rows(dataset, exclude_flags)
+    if not keep.any():
+        raise ValueError(f"{dataset.path}: no row without the flags {', '.join(exclude_flags)}")
+    wi, wo = dataset.directions()
+    return fit(model_name, wi[keep], wo[keep], dataset["brdf_per_sr"][keep],
+               dataset["u_brdf_per_sr"][keep], **kwargs)
+
+
+# ---------------------------------------------------------------- command line
+
+def format_report(result: FitResult) -> str:
+    """Parameters ± standard errors, the paper's metrics and the diagnostics, for people."""
+    lines = [f"model {result.model}: {result.n_points} points, weighting {result.weighting}, loss {result.loss}"
+             + (f" (scale {result.f_scale:.3g})" if result.f_scale is not None else "")]
+    for name, value in result.params.items():
+        se = result.stderr[name]
+        note = ("fixed" if name in result.fixed else "± undetermined by the data" if not math.isfinite(se)
+                else f"± {se:.3g}  ({se / abs(value):.2%})" if value else f"± {se:.3g}")
+        lines.append(f"  {name:<8s} {value:12.6g}  {note}" + ("  [at bound]" if name in result.at_bound else ""))
+    m = result.metrics
+    lines.append(f"RMSE {m['rmse']:.4g} sr⁻¹   NRMSE {m['nrmse']:.4g}   NCC {_fmt(m['ncc'], '.4f')}")
+    lines.append(f"converged {'yes' if result.converged else 'NO'} ({result.message}); "
+                 + (f"χ²/dof {result.chi2_dof:.3g}; " if result.chi2_dof is not None else "")
+                 + f"{result.n_starts_at_best}/{result.n_starts} starts reached the best cost; "
+                 f"{result.nfev} model evaluations; {result.wall_s:.2f} s")
+    return "\n".join(lines)
+
+
+def _fmt(v: float, spec: str) -> str:
+    return format(v, spec) if math.isfinite(v) else "—"
+
+
+def format_comparison(results: list[FitResult]) -> str:
+    """Table-6-like: one line per model, best RMSE first."""
+    head = f"{'model':<16s} {'RMSE':>9s} {'NRMSE':>9s} {'NCC':>7s} {'wall s':>7s} {'conv':>4s}  parameters"
+    rows = [head, "-" * len(head)]
+    for r in sorted(results, key=lambda r: r.metrics["rmse"]):
+        m = r.metrics
+        params = ", ".join(f"{k} {v:.3g}" for k, v in r.params.items())
+        rows.append(f"{r.model:<16s} {m['rmse']:9.4g} {m['nrmse']:9.4g} {_fmt(m['ncc'], '7.3f'):>7s} "
+                    f"{r.wall_s:7.2f} {'yes' if r.converged else 'NO':>4s}  {params}")
+    return "\n".join(rows)
+
+
+def _fixed_value(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    def fail(message: str) -> int:
+        print(f"rig: error: {message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+    names = sorted(MODELS) if args.model == "all" else [args.model]
+    if args.model != "all" and args.model not in MODELS:
+        return fail(f"unknown model {args.model!r}; known: {', '.join(sorted(MODELS))}, or all")
+    try:
+        dataset = load(args.dataset)
+    except (DatasetError, OSError) as exc:
+        return fail(str(exc))
+    exclude = UNUSABLE_FLAGS + tuple(args.exclude_flag)
+    fixed = dict(args.fix)
+    unknown = sorted(set(fixed).difference(*(MODELS[name].param_names for name in names)))
+    if unknown:
+        return fail(f"--fix {', '.join(unknown)}: no such parameter in {', '.join(names)}")
+    keep = usable_rows(dataset, exclude)
+    try:
+        weighting, notice = choose_weighting(dataset["u_brdf_per_sr"][keep],
+                                             [pid for pid, k in zip(dataset.point_id, keep) if k], args.weighting)
+    except ValueError as exc:
+        return fail(f"{args.dataset}: {exc}")
+    if notice:
+        print(f"rig fit: {args.dataset}: {notice}", file=sys.stderr)
+    kwargs = {"weighting": weighting, "loss": args.loss, "starts": args.starts, "seed": args.seed,
+              "exclude_flags": exclude}
+    try:
+        results = [fit_dataset(dataset, name, fixed={k: v for k, v in fixed.items()
+                                                     if k in MODELS[name].param_names}, **kwargs)
+                   for name in names]
+    except ValueError as exc:
+        return fail(f"{args.dataset}: {exc}")
+    print(f"rig fit: {dataset.path} ({len(dataset)} rows)")
+    print(format_comparison(results) if args.model == "all" else format_report(results[0]))
+    if args.json:
+        out = ({"dataset": str(dataset.path), "fits": [r.to_json() for r in results]} if args.model == "all"
+               else results[0].to_json())
+        try:
+            Path(args.json).write_text(json.dumps(out, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        except OSError as exc:
+            return fail(f"cannot write {args.json}: {exc.strerror or exc}")
+    return EXIT_OK
+
+
+def add_subcommand(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register `rig fit DATASET --model NAME|all [--json OUT] [--weighted|--unweighted] [--loss L] ...`."""
+    p = subparsers.add_parser("fit", help="fit a BRDF model (or all) to a dataset: parameters ± stderr, "
+                                          "RMSE/NRMSE/NCC (Spieringhs 2023 Eqs. 16, 19, 20)")
+    p.add_argument("dataset", help="dataset folder (contains dataset.json and brdf.csv)")
+    p.add_argument("--model", required=True, help=f"one of {', '.join(sorted(MODELS))}, or all")
+    p.add_argument("--json", metavar="OUT", help="also write the result as JSON")
+    weighting = p.add_mutually_exclusive_group()
+    weighting.add_argument("--weighted", dest="weighting", action="store_const", const="uncertainty",
+                           help="minimise χ² with u_brdf_per_sr; refused unless every row has u (default: "
+                                "weighted when every row has u, unweighted with a notice when none has)")
+    weighting.add_argument("--unweighted", dest="weighting", action="store_const", const="none",
+                           help="minimise the plain squared error (the paper's RMSE), even where u_brdf_per_sr is given")
+    p.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss against outliers (default linear)")
+    p.add_argument("--starts", type=int, default=4, help="local runs after the global stage (default 4)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the global stage (default 0)")
+    p.add_argument("--fix", type=_fixed_value, action="append", default=[], metavar="NAME=VALUE",
+                   help="hold a parameter at a value (repeatable)")
+    p.add_argument("--exclude-flag", action="append", default=[], metavar="FLAG",
+                   help=f"also leave out rows with FLAG, e.g. grazing_incidence "
+                        f"(always left out: {', '.join(UNUSABLE_FLAGS)})")
+    p.set_defaults(func=cmd_fit)
+    return p

@@ -1,0 +1,299 @@
+"""`rig plot`: PNG figures of a dataset, optionally with a fitted model (matplotlib, Agg, no pyplot state).
+
+Per incidence series:
+- `plane_sNN_tiXX.png` (like Spieringhs et al. 2023 Fig. 7): f_r in the plane of
+  incidence against the signed viewing angle, positive on the lamp side (the
+  retroreflection hemisphere), negative on the specular side; a polar panel
+  (radius ∝ f_r, linear) and a Cartesian one (log f_r) with ± u error bars, the
+  retro (θo = θi) and mirror (θo = −θi) directions marked and the fitted curve.
+  A point belongs to the plane when its viewing direction lies within
+  `PLANE_TOL_DEG` of it (angular distance of ωo from the plane); it is drawn at
+  its projection onto the plane. At normal incidence (θi < 1°) the plane is the
+  x–z plane (φ = 0°/180°).
+- `lobe_sNN_tiXX.png` (like Figs. 6/9): the 3D lobe, each measured point at
+  f_r·ωo, the incident vector toward the lamp, the mirror direction, and the
+  fitted surface f_fit(ωo)·ωo over the hemisphere.
+With a fit (`{"model", "params", "metrics"?}` as `rig fit --json` writes):
+- `fit_residuals.png`: fitted against measured f_r (log–log) and the relative
+  residual against θo, per series.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from rig.core.exits import EXIT_OK, fail
+from rig.data.dataset import Dataset, DatasetError, load, removed_on_failure, require_new_output
+from rig.data.export import series_incidence_deg
+from rig.physics.brdf_models import get_model
+from rig.physics.geometry import mirror_direction, sph_to_vec
+
+#: Views within this angle (degrees) of the plane of incidence are drawn in the plane plots.
+PLANE_TOL_DEG = 2.0
+#: Below this θi (degrees) the plane of incidence is undefined; the x–z plane is used.
+NORMAL_INCIDENCE_DEG = 1.0
+DPI = 110
+MEASURED, FITTED, LAMP = "#1f77b4", "#d62728", "#ff7f0e"
+RETRO_SHADE, SPECULAR_SHADE = "#fdd9b5", "#d6e6f5"
+RETRO_TEXT, SPECULAR_TEXT = "#a0522d", "#2f5f8f"
+
+Model = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _fit_model(fit: Mapping | None) -> Model | None:
+    """f_fit(ωi, ωo) of a fit record, or None without a fit."""
+    if fit is None:
+        return None
+    model, params = get_model(fit["model"]), dict(fit["params"])
+    return lambda wi, wo: model(np.broadcast_to(wi, np.shape(wo)), wo, params)
+
+
+def plane_axes(theta_i_deg: float, phi_i_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """(t, n): unit vector in the plane of incidence toward the lamp's azimuth, and the plane's normal."""
+    phi = np.radians(phi_i_deg) if theta_i_deg >= NORMAL_INCIDENCE_DEG else 0.0
+    return np.array([np.cos(phi), np.sin(phi), 0.0]), np.array([-np.sin(phi), np.cos(phi), 0.0])
+
+
+def plane_offsets(wo: np.ndarray, t: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angular distance of views from the plane, and their signed angle in it (deg, + toward the lamp)."""
+    off = np.degrees(np.arcsin(np.clip(np.abs(wo @ n), 0.0, 1.0)))
+    return off, np.degrees(np.arctan2(wo @ t, wo[:, 2]))
+
+
+def _series_label(theta_i: float, phi_i: float) -> str:
+    return f"θi = {theta_i:.1f}°, φi = {phi_i:.1f}°"
+
+
+def _plane_curve(model: Model, wi: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    signed = np.linspace(-89.5, 89.5, 1791)
+    s = np.radians(signed)[:, None]
+    wo = np.cos(s) * np.array([0.0, 0.0, 1.0]) + np.sin(s) * t
+    return signed, model(wi, wo)
+
+
+def _measured_label(u: np.ndarray) -> str:
+    return "measured ± u" if np.any(u > 0) else "measured (no uncertainty given)"
+
+
+def _draw_polar(ax, signed, f, u, curve, theta_i) -> None:
+    ax.set_theta_zero_location("N")
+    ax.set_theta_direction(-1)          # positive (lamp side) to the right, as in the Cartesian panel
+    ax.set_thetamin(-90)
+    ax.set_thetamax(90)
+    r_max = 1.1 * max(np.max(f + u, initial=0.0), np.max(curve[1]) if curve else 0.0) or 1.0
+    ax.set_ylim(0, r_max)
+    if curve:
+        ax.plot(np.radians(curve[0]), curve[1], color=FITTED, lw=1.6, label="fit")
+    ax.errorbar(np.radians(signed), f, yerr=u, fmt="o", ms=3, color=MEASURED, ecolor="0.5", label=_measured_label(u))
+    ax.annotate("", xy=(np.radians(theta_i), r_max), xytext=(0, 0),
+                arrowprops={"arrowstyle": "-|>", "color": LAMP, "lw": 2, "alpha": 0.8})
+    ax.plot([], [], color=LAMP, lw=2, label="incident direction (lamp)")
+    ax.yaxis.set_major_locator(MaxNLocator(4))
+    ax.text(np.radians(45), 1.2 * r_max, "retro side", ha="left", color=RETRO_TEXT)
+    ax.text(np.radians(-45), 1.2 * r_max, "specular side", ha="right", color=SPECULAR_TEXT)
+    ax.set_xlabel("radius: f_r [sr⁻¹] (linear); angle: viewing angle in the plane [deg]", labelpad=-40)
+    ax.figure.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.9), fontsize=8)
+
+
+def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
+    ax.axvspan(0, 90, color=RETRO_SHADE, alpha=0.5, lw=0)
+    ax.axvspan(-90, 0, color=SPECULAR_SHADE, alpha=0.5, lw=0)
+    ax.axvline(theta_i, color=LAMP, ls="--", lw=1.2, label=f"retroreflection (θo = θi = {theta_i:.1f}°)")
+    ax.axvline(-theta_i, color=SPECULAR_TEXT, ls=":", lw=1.2, label="mirror direction")
+    if curve:
+        ax.plot(curve[0], curve[1], color=FITTED, lw=1.6, label="fit")
+    ax.errorbar(signed, f, yerr=u, fmt="none", ecolor="0.5", capsize=2)
+    dots = ax.scatter(signed, f, c=off, cmap="viridis", vmin=0, vmax=tol_deg, s=18, zorder=3,
+                      edgecolors="k", linewidths=0.3, label=_measured_label(u))
+    ax.figure.colorbar(dots, ax=ax, pad=0.01, label="distance of ωo from the plane [deg]")
+    if f.size and np.all(f > 0):
+        ax.set_yscale("log")
+    ax.set_xlim(-90, 90)
+    ax.set_xticks(np.arange(-90, 91, 30))
+    ax.set_xlabel("signed viewing angle in the plane of incidence [deg]  (− specular side | + lamp side)")
+    ax.set_ylabel("f_r [sr⁻¹]")
+    ax.text(0.25, 1.01, "specular hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=SPECULAR_TEXT)
+    ax.text(0.75, 1.01, "retro hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=RETRO_TEXT)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+
+
+def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
+               tol_deg: float = PLANE_TOL_DEG) -> Path:
+    """Plane-of-incidence figure of one series (module docstring)."""
+    theta_i, phi_i = series_incidence_deg(ds, series)
+    t, n = plane_axes(theta_i, phi_i)
+    rows = ds["series"] == series
+    _, wo = ds.directions()
+    off, signed = plane_offsets(wo[rows], t, n)
+    keep = off <= tol_deg
+    order = np.argsort(signed[keep])
+    signed, off, f, u = (a[keep][order] for a in (signed, off, ds["brdf_per_sr"][rows], ds["u_brdf_per_sr"][rows]))
+    wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
+    curve = _plane_curve(model, wi, t) if model else None
+    fig = Figure(figsize=(14, 5.8))
+    fig.suptitle(f"{_sample(ds)} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points within "
+                 f"{tol_deg:g}° of the plane of incidence", fontsize=12)
+    _draw_polar(fig.add_axes((0.045, 0.04, 0.36, 0.86), projection="polar"), signed, f, u, curve, theta_i)
+    _draw_cartesian(fig.add_axes((0.5, 0.1, 0.44, 0.78)), signed, f, u, off, tol_deg, curve, theta_i)
+    fig.savefig(out, dpi=DPI)
+    return out
+
+
+def _hemisphere_surface(model: Model, wi: np.ndarray) -> np.ndarray:
+    """Points f_fit(ωo)·ωo on a (θ, φ) grid over the hemisphere, shape (Nθ, Nφ, 3)."""
+    theta, phi = np.meshgrid(np.radians(np.linspace(0, 89, 60)), np.radians(np.linspace(0, 360, 121)),
+                             indexing="ij")
+    wo = sph_to_vec(theta, phi)
+    return model(wi, wo)[..., None] * wo
+
+
+def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -> Path:
+    """3D lobe of one series: measured f_r·ωo, incident vector, fitted surface (module docstring)."""
+    theta_i, phi_i = series_incidence_deg(ds, series)
+    rows = ds["series"] == series
+    _, wo = ds.directions()
+    f = ds["brdf_per_sr"][rows]
+    pts = f[:, None] * wo[rows]
+    wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
+    surface = _hemisphere_surface(model, wi) if model else None
+    reach = 1.15 * max(np.max(np.abs(pts)), np.max(np.abs(surface)) if model else 0.0)
+    fig = Figure(figsize=(9, 7.5))
+    ax = fig.add_subplot(projection="3d")
+    if model:
+        ax.plot_surface(*np.moveaxis(surface, -1, 0), color=FITTED, alpha=0.18, lw=0.3, edgecolor="#e8a0a0",
+                        rstride=3, cstride=3)
+        ax.plot([], [], color=FITTED, lw=4, alpha=0.4, label="fit f_fit(ωo)·ωo")
+    sc = ax.scatter(*pts.T, c=f, cmap="viridis", s=14, depthshade=False, label="measured f_r·ωo")
+    ax.quiver(0, 0, 0, *(reach * wi), color=LAMP, lw=1.5, alpha=0.7, arrow_length_ratio=0.06)
+    ax.text(*(1.08 * reach * wi), "ωi (lamp)", color=LAMP, fontsize=10)
+    ax.plot(*np.stack([np.zeros(3), reach * mirror_direction(wi)]).T, color=SPECULAR_TEXT, ls="--", lw=1.2,
+            label="mirror direction")
+    ring = np.radians(np.linspace(0, 360, 181))
+    ax.plot(reach * np.cos(ring), reach * np.sin(ring), 0 * ring, color="0.6", lw=0.8, label="sample plane")
+    ax.plot([0, 0], [0, 0], [0, reach], color="0.4", ls=":", lw=1, label="normal z")
+    ax.set_xlim(-reach, reach)
+    ax.set_ylim(-reach, reach)
+    ax.set_zlim(0, reach)
+    ax.set_box_aspect((2, 2, 1))
+    ax.view_init(elev=25, azim=(phi_i if theta_i >= NORMAL_INCIDENCE_DEG else 0.0) - 90)
+    for setter, axis in ((ax.set_xlabel, "x"), (ax.set_ylabel, "y"), (ax.set_zlabel, "z")):
+        setter(f"{axis}·f_r [sr⁻¹]")
+    fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.08, label="measured f_r [sr⁻¹]")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(f"{_sample(ds)} — BRDF lobe, {_series_label(theta_i, phi_i)} ({rows.sum()} points)\n"
+                 "radius ∝ f_r in the viewing direction", fontsize=11)
+    fig.savefig(out, dpi=DPI, bbox_inches="tight")
+    return out
+
+
+def _fit_title(fit: Mapping) -> str:
+    metrics = fit.get("metrics") or {}
+    shown = ", ".join(f"{k.upper()} {metrics[k]:.4g}" for k in ("rmse", "nrmse", "ncc") if metrics.get(k) is not None)
+    params = ", ".join(f"{k} = {v:.3g}" for k, v in fit["params"].items())
+    return f"fit {fit['model']}: {params}" + (f"\n{shown}" if shown else "")
+
+
+def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
+    """Fitted vs measured f_r and relative residuals vs θo, per series."""
+    model = _fit_model(fit)
+    wi, wo = ds.directions()
+    f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
+    f_fit = model(wi, wo)
+    fig = Figure(figsize=(13, 5.6))
+    ax_fit, ax_res = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    for s in np.unique(ds["series"]).astype(int):
+        rows = ds["series"] == s
+        label = _series_label(*series_incidence_deg(ds, s))
+        ax_fit.errorbar(f[rows], f_fit[rows], xerr=u[rows], fmt="o", ms=4, capsize=2, label=label)
+        ax_res.errorbar(ds["theta_o_deg"][rows], 100 * (f[rows] - f_fit[rows]) / f_fit[rows],
+                        yerr=100 * u[rows] / f_fit[rows], fmt="o", ms=4, capsize=2, label=label)
+    both = np.concatenate([f, f_fit])
+    lims = (0.7 * both[both > 0].min(), 1.4 * both.max())
+    ax_fit.plot(lims, lims, color="0.3", lw=1, ls="--", label="fitted = measured")
+    ax_fit.set(xscale="log", yscale="log", xlim=lims, ylim=lims, xlabel="measured f_r [sr⁻¹]",
+               ylabel="fitted f_r [sr⁻¹]", title="fitted against measured (± u)")
+    ax_res.axhline(0, color="0.3", lw=1)
+    ax_res.set(xlabel="viewing angle θo [deg]", ylabel="(measured − fitted) / fitted [%]",
+               title="relative residual against θo (± u)", xlim=(0, 90))
+    for ax in (ax_fit, ax_res):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{_sample(ds)} — {_fit_title(fit)}", fontsize=11)
+    fig.subplots_adjust(left=0.075, right=0.98, bottom=0.1, top=0.85, wspace=0.22)
+    fig.savefig(out, dpi=DPI)
+    return out
+
+
+def _sample(ds: Dataset) -> str:
+    return str(ds.manifest.get("sample", {}).get("id") or ds.path.name)
+
+
+def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLike,
+                 fit: Mapping | None = None, *, plane_tol_deg: float = PLANE_TOL_DEG) -> list[Path]:
+    """Write the figures of the module docstring into out_dir; returns their paths.
+
+    out_dir is created; an existing file or non-empty folder is refused (DatasetError), and a
+    failure part-way removes the figures already written.
+    """
+    ds = dataset if isinstance(dataset, Dataset) else load(dataset)
+    if len(ds) == 0:
+        raise DatasetError(f"{ds.path}: no measured point to plot")
+    out_dir = Path(out_dir)
+    require_new_output(out_dir, hint="choose another --out")
+    model = _fit_model(fit)
+    paths = []
+    with removed_on_failure(out_dir):
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for s in np.unique(ds["series"]).astype(int):
+            theta_i = series_incidence_deg(ds, s)[0]
+            stem = f"s{s:02d}_ti{theta_i:02.0f}"
+            paths.append(plot_plane(ds, s, out_dir / f"plane_{stem}.png", model, plane_tol_deg))
+            paths.append(plot_lobe(ds, s, out_dir / f"lobe_{stem}.png", model))
+        if fit is not None:
+            paths.append(plot_residuals(ds, fit, out_dir / "fit_residuals.png"))
+    return paths
+
+
+def read_fit(path: str | os.PathLike) -> dict:
+    """A fit record from `rig fit --json` output (a single fit, not `--model all`)."""
+    try:
+        fit = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(fit, dict) or "model" not in fit or "params" not in fit:
+        raise ValueError(f"{path}: not a single fit (needs 'model' and 'params'; "
+                         "for `rig fit --model all` output pick one of its 'fits')")
+    get_model(fit["model"])
+    return fit
+
+
+def cmd_plot(args) -> int:
+
+    try:
+        fit = read_fit(args.fit) if args.fit else None
+        paths = plot_dataset(args.dataset, args.out, fit)
+    except (DatasetError, ValueError, KeyError) as exc:
+        return fail(str(exc).strip('"'))
+    except OSError as exc:
+        return fail(f"{exc.filename}: {exc.strerror}")
+    print(f"{len(paths)} figures in {args.out}", file=sys.stderr)
+    return EXIT_OK
+
+
+def add_subcommand(subparsers) -> None:
+    """Register `rig plot DATASET [--fit FIT.json] --out DIR`."""
+    p = subparsers.add_parser("plot", help="PNG figures: plane of incidence and 3D lobe per incidence, "
+                                           "fit residuals")
+    p.add_argument("dataset", metavar="DATASET", help="dataset folder")
+    p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit --json` to overlay")
+    p.add_argument("--out", required=True, help="new folder for the PNG files (must not exist or be empty)")
+    p.set_defaults(func=cmd_plot)

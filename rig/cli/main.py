@@ -1,0 +1,231 @@
+"""Command line: `rig run`, `rig plan`, `rig devices`."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections import Counter
+from pathlib import Path
+
+from rig import __version__
+from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
+from rig.acquisition.engine import NOMINAL_CAPTURE_S
+from rig.acquisition.execute import execute, manifest_for
+from rig.acquisition.progress import ProgressBar, format_duration
+from rig.acquisition.resume import prepare_resume
+from rig.analysis import fit, plots
+from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
+from rig.config.files import ConfigFileError
+from rig.config.rigfile import RigConfig, load_rig_config
+from rig.core.errors import DeviceError
+from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
+from rig.data import export, importer
+from rig.data.dataset import DatasetError, DatasetWriter, require_new_output
+from rig.devices import check_devices
+from rig.drivers.interfaces import RigDevices
+from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
+from rig.planning.points import Plan, describe_reason
+from rig.session import bench
+from rig.session.connect import open_campaign_rig, open_rig
+
+
+def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
+    print(f"campaign {campaign.name}: {len(plan.series)} incidence series, {plan.n_planned} planned points")
+    print(f"  to measure: {len(plan.points)}")
+    print(f"  skipped:    {len(plan.skipped)}")
+    for reason, n in sorted(plan.skipped_by_reason().items(), key=lambda kv: -kv[1]):
+        print(f"    {n:6d}  {reason}: {describe_reason(reason)}")
+    print("  per series (θi, φi): measured / planned")
+    measured = Counter(p.series for p in plan.points)
+    planned = measured + Counter(p.series for p in plan.skipped)
+    for s in plan.series:
+        print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {measured[s.index]:4d} / "
+              f"{planned[s.index]}")
+    moves = estimate_rig_time_s(plan, rig, NOMINAL_CAPTURE_S)
+    warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
+    print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
+          f"(moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point + ≥ {warm:.0f} s lamp warm-up; "
+          "exposures depend on the sample)")
+    if plan.points:
+        table_s, optimised_s = rig_time_comparison(campaign, rig, NOMINAL_CAPTURE_S)
+        print(f"  moves + capture: table order {format_duration(table_s)}, optimised order "
+              f"{format_duration(optimised_s)} ({optimised_s / table_s:.2f} × table)")
+
+
+def _rig_config(args) -> RigConfig:
+    """The --rig file, or the built-in simulated rig."""
+    return load_rig_config(args.rig) if args.rig else RigConfig()
+
+
+def _load(args) -> tuple[Campaign, RigConfig, Plan]:
+    campaign = load_campaign(args.campaign)
+    rig = _rig_config(args)
+    check_campaign_for_rig(campaign, rig, args.campaign)
+    return campaign, rig, build_plan(campaign, rig)
+
+
+def cmd_plan(args) -> int:
+    try:
+        campaign, rig, plan = _load(args)
+    except ConfigFileError as exc:
+        return fail(str(exc))
+    print_plan(plan, campaign, rig)
+    return EXIT_OK
+
+
+def print_devices(devices: RigDevices) -> None:
+    """Identity and state of every device; reads only, moves nothing."""
+    for role, identity in devices.identities().items():
+        print(f"{role:6s}  {identity}")
+    for positioner in (devices.arm, devices.stage):
+        positions = ", ".join(f"{ax.name} {ax.position_deg():.3f}°{' (moving)' if ax.is_moving() else ''}"
+                              for ax in positioner.axes)
+        print(f"        {positioner.name}: {positions}")
+    lamp = devices.lamp
+    print(f"        lamp: output {'ON' if lamp.output_is_on() else 'off'}, {lamp.measure_current_a():.3f} A, "
+          f"{lamp.measure_voltage_v():.3f} V")
+    s = devices.camera.sensor
+    print(f"        camera: {s.width_px}×{s.height_px} px, {s.bit_depth} bit, exposures "
+          f"{s.min_exposure_s:g}–{s.max_exposure_s:g} s")
+
+
+def cmd_devices(args) -> int:
+    try:
+        rig = load_rig_config(args.rig_file)
+        check_devices(rig, args.rig_file)
+        with open_rig(rig) as devices:
+            print(f"rig {rig.name} ({'simulated' if rig.simulated else 'hardware'})")
+            print_devices(devices)
+    except ConfigFileError as exc:
+        return fail(str(exc))
+    except DeviceError as exc:
+        print(f"rig: device error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def cmd_resume(args) -> int:
+    try:
+        r = prepare_resume(args.resume, force=args.force)
+    except (ConfigFileError, DatasetError) as exc:
+        return fail(str(exc))
+    left = len(r.plan.points) - len(r.done_rows)
+    print(f"rig {__version__}: resuming {r.campaign.name} in {args.resume}: {len(r.done_rows)} points done, "
+          f"{left} to measure", file=sys.stderr)
+    outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume), open_campaign_rig(r.campaign, r.rig),
+                      writer=r.writer,
+                      done_rows=r.done_rows, progress=None if args.quiet else ProgressBar(), handle_signals=True)
+    return _report_outcome(outcome, len(r.plan.skipped))
+
+
+def _report_outcome(outcome, n_skipped: int) -> int:
+    if outcome.status == "failed":
+        print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {outcome.out}",
+              file=sys.stderr)
+        return EXIT_FAILED
+    print(f"{outcome.status}: {outcome.measured} points measured, {n_skipped} skipped; "
+          f"rig time {format_duration(outcome.rig_time_s)}, wall time {outcome.wall_s:.1f} s; "
+          f"dataset in {outcome.out}" + ("" if outcome.status == "complete" else
+                                        f" (continue with: rig run --resume {outcome.out})"),
+          file=sys.stderr)
+    return EXIT_OK if outcome.status == "complete" else EXIT_INTERRUPTED
+
+
+def _sim_pace_problem() -> str | None:
+    """A bad RIG_SIM_PACE (the simulated clock's pace) is bad input, refused before anything is written."""
+    from rig.simulators.clock import pace_from_env  # only the simulated rig has a paced clock
+
+    try:
+        pace_from_env()
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+def cmd_run(args) -> int:
+    if (problem := _sim_pace_problem()) is not None:
+        return fail(problem)
+    if args.resume:
+        return cmd_resume(args)
+    if not args.campaign:
+        return fail("give a campaign file, or --resume DIR")
+    try:
+        campaign, rig, plan = _load(args)
+        check_devices(rig, args.rig or "<built-in rig>")
+    except ConfigFileError as exc:
+        return fail(str(exc))
+    if rig.simulated and campaign.sample.simulated_brdf is None:
+        return fail(f"{args.campaign}: key 'sample.simulated_brdf' is required on the simulated rig "
+                     "(the sample's true BRDF: model and params)")
+    if not plan.points:
+        return fail(f"{args.campaign}: no point of the campaign can be measured "
+                     f"(skipped: {plan.skipped_by_reason()})")
+    out = Path(args.out or campaign.output.dir)
+    campaign_path = Path(args.campaign).resolve()     # the manifest's record works from any folder
+    needed = estimate_dataset_bytes(len(plan.points), len(plan.skipped), rig, campaign.capture.save_images)
+    try:
+        require_new_output(out)
+        problem = space_problem(out, needed)
+        if problem:
+            return fail(problem)
+        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig), space_needed_bytes=needed)
+        writer.write_skipped(plan.skipped)
+    except DatasetError as exc:
+        return fail(str(exc))
+    where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
+    print(f"rig {__version__}: {campaign.name} on {where} → {out} "
+          f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
+    outcome = execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig), writer=writer,
+                      progress=None if args.quiet else ProgressBar(), handle_signals=True)
+    return _report_outcome(outcome, len(plan.skipped))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="rig", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"rig {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p_run = sub.add_parser("run", help="measure a campaign (by default on the built-in simulated rig)")
+    p_run.add_argument("campaign", nargs="?", help="campaign YAML file")
+    p_run.add_argument("--out", help="dataset folder (default: output.dir of the campaign)")
+    p_run.add_argument("--resume", metavar="DIR", help="continue an interrupted or failed campaign in DIR")
+    p_run.add_argument("--force", action="store_true", help="with --resume: even if the campaign file changed")
+    p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
+    p_run.add_argument("--quiet", action="store_true", help="no progress bar")
+    p_run.set_defaults(func=cmd_run)
+    p_plan = sub.add_parser("plan", help="print the plan: points, skipped points by reason, rig time")
+    p_plan.add_argument("campaign", help="campaign YAML file")
+    p_plan.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
+    p_plan.set_defaults(func=cmd_plan)
+    p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
+    p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
+    p_dev.set_defaults(func=cmd_devices)
+    for module in (fit, importer, export, plots, bench):
+        module.add_subcommand(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        code = args.func(args)
+        sys.stdout.flush()           # a closed pipe shows here, not in the interpreter's exit
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
+    return code
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush does not fail a second time."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return                       # not a real file (captured): nothing will be flushed to a pipe
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

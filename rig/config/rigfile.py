@@ -1,0 +1,333 @@
+"""Rig configuration: geometry, axes, camera, lamp and meter of one goniophotometer.
+
+Defaults describe the LNFG set-up of Spieringhs et al. 2023 (RIGO801 goniometer,
+LMK 98-4 camera at 1.54 m, QTH lamp at 0.92 m, 7.5 cm spot). The `simulation`
+section is read only by the simulated rig: it holds the truths a real rig
+would not know (noise realisations, lamp physics, sample texture).
+
+Rig files are validated as strictly as campaign files, before anything is
+connected or written: every number finite and within a sane range, each
+device's address in its driver's syntax, axis limits, speeds and accelerations
+that fit the controllers' int32 step registers. What needs an import or a
+hardware rig (the camera plug-in, real addresses) is checked by
+rig.devices.check_devices before connecting.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Annotated, Any, Callable, Literal
+
+from pydantic import AfterValidator, Field, StringConstraints, model_validator
+
+from rig.config.capture import MAX_EXPOSURE_S
+from rig.config.files import ConfigFileError, parse_model, printable, read_yaml, short
+from rig.config.strict import StrictModel
+from rig.config.zones import CollisionsConfig
+from rig.core.values import SensorInfo
+from rig.physics.geometry import AxisLimits
+from rig.physics.optics import CameraOptics
+
+#: Axis positions and limits (deg): two turns either way covers any goniometer axis.
+AxisDeg = Annotated[float, Field(ge=-720, le=720)]
+#: A device timeout or a settling time (s).
+Seconds = Annotated[float, Field(gt=0, le=60)]
+#: A relative uncertainty or repeatability.
+Rel = Annotated[float, Field(ge=0, le=1)]
+#: Distances on the rig (m).
+Metres = Annotated[float, Field(gt=0, le=100)]
+#: Axis positions, speeds and accelerations travel as int32 step counts (docs/modbus-axis-register-map.md).
+INT32_MAX = 2 ** 31 - 1
+
+
+class AxisConfig(StrictModel):
+    limits_deg: tuple[AxisDeg, AxisDeg]
+    speed_deg_s: float = Field(gt=0, le=360)
+    accel_deg_s2: float = Field(gt=0, le=3600)
+    settle_s: float = Field(0.2, ge=0, le=60)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        lo, hi = self.limits_deg
+        if not lo < hi:
+            raise ValueError(f"limits_deg must be [low, high] with low < high, got {list(self.limits_deg)}")
+        return self
+
+
+AXIS_NAMES = ("stage_vertical", "stage_normal", "arm_azimuth", "arm_polar")
+
+
+class AxesConfig(StrictModel):
+    stage_vertical: AxisConfig = AxisConfig(limits_deg=(-90, 90), speed_deg_s=10, accel_deg_s2=20)
+    stage_normal: AxisConfig = AxisConfig(limits_deg=(-360, 360), speed_deg_s=20, accel_deg_s2=40)
+    arm_azimuth: AxisConfig = AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30)
+    arm_polar: AxisConfig = AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30)
+
+    def limits(self) -> AxisLimits:
+        return AxisLimits(*(getattr(self, n).limits_deg for n in AXIS_NAMES))
+
+
+class GeometryConfig(StrictModel):
+    lamp_distance_m: Metres = 0.92
+    camera_distance_m: Metres = 1.54
+    lamp_housing_radius_m: float = Field(0.04, ge=0, le=10)
+    spot_diameter_m: Metres = 0.075
+    #: Standard uncertainty of every axis position (positioning + read-back).
+    angle_u_deg: float = Field(0.01, ge=0, le=10)
+
+
+class CameraConfig(StrictModel):
+    """Sensor and lens of the luminance camera (LMK 98-4: ICX285, 1390×1040, 12 bit)."""
+
+    width_px: int = Field(1390, gt=0, le=100_000)
+    height_px: int = Field(1040, gt=0, le=100_000)
+    pixel_pitch_um: float = Field(6.45, gt=0, le=1000)
+    focal_length_mm: float = Field(50.0, gt=0, le=10_000)
+    bit_depth: int = Field(12, ge=8, le=16)
+    full_well_e: float = Field(18000.0, gt=0, le=1e9)
+    read_noise_e: float = Field(8.0, ge=0, le=1e6)
+    black_level_dn: float = Field(64.0, ge=0, le=65535)
+    #: Photo-electrons per second per cd/m² of scene luminance (lens + QE + pixel area).
+    responsivity_e_per_cd_m2_s: float = Field(900.0, gt=0, le=1e12)
+    calibration_u_rel: Rel = 0.0
+    min_exposure_s: float = Field(1e-4, gt=0, le=MAX_EXPOSURE_S)
+    max_exposure_s: float = Field(15.0, gt=0, le=MAX_EXPOSURE_S)
+    #: Time to read the full sensor; a window reads proportionally faster.
+    readout_s: float = Field(0.1, ge=0, le=60)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if not self.black_level_dn < 2 ** self.bit_depth - 1:
+            raise ValueError(f"black_level_dn ({self.black_level_dn:g}) must be below the {self.bit_depth}-bit "
+                             f"maximum {2 ** self.bit_depth - 1}")
+        if not self.min_exposure_s < self.max_exposure_s:
+            raise ValueError(f"min_exposure_s ({self.min_exposure_s:g}) must be below max_exposure_s "
+                             f"({self.max_exposure_s:g})")
+        return self
+
+    @property
+    def gain_dn_per_e(self) -> float:
+        return (2 ** self.bit_depth - 1 - self.black_level_dn) / self.full_well_e
+
+    def sensor_info(self) -> SensorInfo:
+        return SensorInfo(
+            width_px=self.width_px, height_px=self.height_px, bit_depth=self.bit_depth,
+            gain_dn_per_e=self.gain_dn_per_e, read_noise_e=self.read_noise_e,
+            black_level_dn=self.black_level_dn,
+            calibration_cd_m2_per_dn_s=1.0 / (self.responsivity_e_per_cd_m2_s * self.gain_dn_per_e),
+            calibration_u_rel=self.calibration_u_rel,
+            min_exposure_s=self.min_exposure_s, max_exposure_s=self.max_exposure_s)
+
+
+class LampConfig(StrictModel):
+    current_a: float = Field(4.17, gt=0, le=100)      # 50 W / 12 V QTH
+    ramp_s: float = Field(5.0, ge=0, le=600)      # the supply is stepped every 0.1 s on the way
+
+
+class MeterConfig(StrictModel):
+    #: lx per A of photocurrent, from the detector's calibration certificate.
+    calibration_lx_per_a: float = Field(1.0e9, gt=0, le=1e15)
+    calibration_u_rel: Rel = 0.0
+    #: Relative standard deviation of one reading, used when only one reading is taken.
+    repeatability_rel: Rel = 0.002
+    integration_s: float = Field(0.2, ge=0, le=60)
+
+
+class SimulationConfig(StrictModel):
+    """Truths of the simulated rig."""
+
+    seed: int = Field(1, ge=0, le=2 ** 63 - 1)
+    illuminance_normal_lx: float = Field(5000.0, gt=0, le=1e6)   # E⊥ at nominal current, warm lamp
+    lamp_exponent: float = Field(3.4, ge=0, le=10)               # light output ∝ I^3.4
+    warmup_amplitude: float = Field(-0.05, gt=-1, le=1)          # output at switch-on relative to warm
+    warmup_tau_s: float = Field(120.0, gt=0, le=86400)
+    drift_per_hour: float = Field(-0.002, ge=-0.1, le=0.1)       # slow ageing drift after warm-up
+    meter_noise_rel: Rel = 0.002
+    positioning_sigma_deg: float = Field(0.003, ge=0, le=10)     # repeatability of a move
+    encoder_resolution_deg: float = Field(0.001, gt=0, le=1)
+    dark_current_e_s: float = Field(20.0, ge=0, le=1e9)
+    dsnu_e_s: float = Field(2.0, ge=0, le=1e9)                   # pixel-to-pixel dark-current spread
+    prnu_rel: Rel = 0.005                                        # pixel-to-pixel gain spread
+    #: Relative std of the static reflectance grains at their lattice nodes (seen alike from every view).
+    texture_contrast: float = Field(0.03, ge=0, lt=1)
+    texture_grain_m: float = Field(0.001, gt=0, le=1)
+    #: Relative std of the direction-dependent glint factor (glass beads, aggregate) at its lattice nodes:
+    #: it makes the ROI mean change from view to view.
+    glint_contrast: float = Field(0.10, ge=0, lt=1)
+    #: Spatial lattice pitch of the glints.
+    glint_grain_m: float = Field(0.0005, gt=0, le=1)
+    #: Lattice pitch of the glints in the half vector's projection on the sample (≈ its rotation near the
+    #: normal): ROI means of two views correlate ½ at 0.6 pitch apart and not at all beyond 2 pitches.
+    glint_angle_deg: float = Field(2.0, gt=0, le=90)
+    #: Std of each axis's fixed zero error (zero calibration, sample mounting), drawn once per run: the
+    #: encoders read the physical angle minus it, so it is what `geometry.angle_u_deg` must cover.
+    axis_zero_sigma_deg: float = Field(0.01, ge=0, le=10)
+    ambient_cd_m2: float = Field(0.0, ge=0, le=1e6)              # stray light on unlit parts
+
+
+# -- device addresses ------------------------------------------------------------------------
+_HOST_PORT = re.compile(r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?):(\d{1,5})")
+#: pyserial URL handlers (serial_for_url) and whether they need host:port.
+_SERIAL_URLS = {"socket": True, "rfc2217": True, "loop": False, "spy": False, "alt": False, "hwgrep": False,
+                "cp2110": False}
+_SERIAL_PATH = re.compile(r"/[^\s?#]+|COM[1-9]\d{0,2}|\\\\\.\\COM[1-9]\d{0,2}")
+#: Modbus RTU options (query of the address) and the values each accepts.
+_RTU_OPTIONS: dict[str, Callable[[str], bool]] = {
+    "baudrate": lambda v: v.isdigit() and 50 <= int(v) <= 4_000_000,
+    "parity": lambda v: v in ("N", "E", "O", "M", "S"),
+    "stopbits": lambda v: v in ("1", "2"),
+    "bytesize": lambda v: v in ("5", "6", "7", "8"),
+}
+
+
+def _host_port_problem(rest: str) -> str | None:
+    m = _HOST_PORT.fullmatch(rest)
+    if m is None:
+        return "expected host:port"
+    if not 1 <= int(m.group(1)) <= 65535:
+        return f"port {m.group(1)} outside 1–65535"
+    return None
+
+
+def serial_address_problem(address: str) -> str | None:
+    """What is wrong with a serial-line address (device path or pyserial URL), or None."""
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        return None if _SERIAL_PATH.fullmatch(address) else \
+            "expected a serial device path (/dev/ttyUSB0, COM3) or a pyserial URL (socket://host:port)"
+    if scheme not in _SERIAL_URLS:
+        return f"unknown URL scheme {short(scheme)}; known: {', '.join(_SERIAL_URLS)}"
+    if _SERIAL_URLS[scheme]:
+        return _host_port_problem(rest.partition("?")[0])
+    return None
+
+
+def modbus_address_problem(address: str) -> str | None:
+    """What is wrong with `modbus-tcp://host:port` or `modbus-rtu://<serial>?key=value&…`, or None."""
+    scheme, _, rest = address.partition("://")
+    if scheme == "modbus-tcp":
+        problem = _host_port_problem(rest)
+        return f"modbus-tcp: {problem}" if problem else None
+    if scheme == "modbus-rtu":
+        port, _, query = rest.partition("?")
+        problem = serial_address_problem(port)
+        if problem:
+            return f"modbus-rtu: {problem}"
+        for item in filter(None, query.split("&")):
+            key, _, value = item.partition("=")
+            if key not in _RTU_OPTIONS:
+                return f"modbus-rtu: unknown option {short(key)} (known: {', '.join(_RTU_OPTIONS)})"
+            if not _RTU_OPTIONS[key](value):
+                return f"modbus-rtu: {key}={short(value)} is not allowed"
+        return None
+    return "expected modbus-tcp://host:port or modbus-rtu://<serial port>?baudrate=N"
+
+
+def _address(check: Callable[[str], str | None]) -> Any:
+    """The type of an address field: `auto` (the simulated rig picks it) or what `check` finds no problem with."""
+    def validate(address: str) -> str:
+        problem = None if address == "auto" else check(address)
+        if problem:
+            raise ValueError(problem)
+        return address
+    return Annotated[str, StringConstraints(min_length=1, max_length=1000), AfterValidator(validate)]
+
+
+class PositionerDevice(StrictModel):
+    """A two-axis motion controller (goniometer arm or sample stage) speaking Modbus."""
+
+    driver: Literal["modbus-axis"] = "modbus-axis"
+    #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N`;
+    #: `auto` on the simulated rig (its peers pick free loopback ports).
+    address: _address(modbus_address_problem) = "auto"
+    device_id: int = Field(1, ge=0, le=247)
+    steps_per_degree: float = Field(1000.0, gt=0, le=1e6)
+    timeout_s: Seconds = 1.0
+
+
+class LampDevice(StrictModel):
+    driver: Literal["delta-sm"] = "delta-sm"
+    address: _address(serial_address_problem) = "auto"   # e.g. socket://192.168.1.20:8462 or /dev/ttyUSB1
+    timeout_s: Seconds = 1.0
+
+
+class MeterDevice(StrictModel):
+    driver: Literal["p9710"] = "p9710"
+    address: _address(serial_address_problem) = "auto"   # e.g. /dev/ttyUSB0
+    timeout_s: Seconds = 1.0
+
+
+class CameraDevice(StrictModel):
+    """`simulated`, or `python:package.module:Class` for a vendor-SDK driver (see docs/camera-drivers.md).
+
+    Only the form is checked here; rig.devices.check_devices imports and checks the class."""
+
+    driver: str = "simulated"
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _known_driver(self):
+        if self.driver != "simulated" and not re.fullmatch(r"python:[A-Za-z_][\w.]*:[A-Za-z_]\w*", self.driver):
+            raise ValueError(f"camera driver {short(self.driver)}: use 'simulated' or 'python:package.module:Class'")
+        return self
+
+
+class DevicesConfig(StrictModel):
+    arm: PositionerDevice = PositionerDevice()
+    stage: PositionerDevice = PositionerDevice()
+    lamp: LampDevice = LampDevice()
+    meter: MeterDevice = MeterDevice()
+    camera: CameraDevice = CameraDevice()
+
+
+#: Axes of each positioner, in controller axis order.
+POSITIONER_AXES = {"arm": ("arm_azimuth", "arm_polar"), "stage": ("stage_vertical", "stage_normal")}
+
+
+class RigConfig(StrictModel):
+    name: Annotated[str, StringConstraints(min_length=1, max_length=200), AfterValidator(printable)] = "simulated"
+    simulated: bool = True
+    devices: DevicesConfig = DevicesConfig()
+    geometry: GeometryConfig = GeometryConfig()
+    axes: AxesConfig = AxesConfig()
+    camera: CameraConfig = CameraConfig()
+    lamp: LampConfig = LampConfig()
+    meter: MeterConfig = MeterConfig()
+    collisions: CollisionsConfig = CollisionsConfig()
+    simulation: SimulationConfig = SimulationConfig()
+
+    @model_validator(mode="after")
+    def _steps_fit_registers(self):
+        """Every axis's limits, speed and acceleration, in steps, fit the controller's int32 registers,
+        and speed and acceleration are at least one step (a zero would never move)."""
+        for positioner, axes in POSITIONER_AXES.items():
+            steps = getattr(self.devices, positioner).steps_per_degree
+            for name in axes:
+                axis = getattr(self.axes, name)
+                for what, value in (("limits_deg", max(map(abs, axis.limits_deg))), ("speed_deg_s", axis.speed_deg_s),
+                                    ("accel_deg_s2", axis.accel_deg_s2)):
+                    if value * steps > INT32_MAX:
+                        raise ValueError(f"axes.{name}.{what} {value:g} × devices.{positioner}.steps_per_degree "
+                                         f"{steps:g} exceeds the controller's int32 registers")
+                    if what != "limits_deg" and round(value * steps) < 1:
+                        raise ValueError(f"axes.{name}.{what} {value:g} is less than one step "
+                                         f"(devices.{positioner}.steps_per_degree {steps:g})")
+        return self
+
+
+def camera_optics(config: RigConfig) -> CameraOptics:
+    """The pinhole model of the rig's camera, in metres (the rig file gives µm and mm)."""
+    cam = config.camera
+    return CameraOptics(width_px=cam.width_px, height_px=cam.height_px, pixel_pitch_m=cam.pixel_pitch_um * 1e-6,
+                        focal_length_m=cam.focal_length_mm * 1e-3, distance_m=config.geometry.camera_distance_m)
+
+
+class RigConfigError(ConfigFileError):
+    """A rig file that cannot be used."""
+
+
+def load_rig_config(path: str | Path) -> RigConfig:
+    """Read and validate a rig file; raise RigConfigError with one clear message."""
+    return parse_model(read_yaml(path, "rig", RigConfigError), RigConfig, source=path, what="rig configuration",
+                       error=RigConfigError)

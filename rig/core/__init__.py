@@ -1,0 +1,1 @@
+"""What every layer shares: value types, errors, exit codes, the clock interface."""
