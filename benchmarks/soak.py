@@ -1,5 +1,5 @@
 """Soak benchmark: the paper campaign on the simulated rig under random faults (full form of
-tests/test_soak.py). Prints the machine, the fault schedule, what the run survived (retries,
+tests/session/test_soak.py). Prints the machine, the fault schedule, what the run survived (retries,
 reconnects, pauses, restarts) and the comparison with a fault-free run of the same rig.
 
     python benchmarks/soak.py [--transient N] [--seed S]

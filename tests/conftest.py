@@ -3,18 +3,17 @@
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from repo_paths import CAMPAIGNS, ROOT, TEST_CAMPAIGNS
 
 
 @pytest.fixture
 def campaigns_dir() -> Path:
-    return ROOT / "campaigns"
+    return CAMPAIGNS
 
 
 @pytest.fixture
 def test_campaigns_dir() -> Path:
-    return ROOT / "tests" / "campaigns"
+    return TEST_CAMPAIGNS
 
 
 @pytest.fixture(scope="session")

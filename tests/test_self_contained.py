@@ -12,12 +12,12 @@ from pathlib import Path
 import pytest
 from annotated_types import Ge, Gt, Le, Lt
 from pydantic import BaseModel
+from repo_paths import ROOT
 
 from rig.config import campaign as campaign_module
 from rig.data.dataset import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS, DatasetWriter
 from rig.planning.points import SKIP_REASONS
 
-ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 CODE_FOLDERS = ("rig", "drivers", "simulators", "tests", "benchmarks")
 #: Paths into the development workspace beside the repository, which a user's clone does not have.

@@ -5,7 +5,7 @@ the dataset was started with (sha256 in the manifest) unless forced; the rig
 configuration is the manifest's. Points written ahead as `point_pending` (their
 closing E⊥ reading never came) are appended first, with the E⊥ they had.
 
-The folder is locked first (one writer, rig/folderlock.py); everything it holds is
+The folder is locked first (one writer, rig/data/folderlock.py); everything it holds is
 checked before anything is appended, and a malformed file is refused (exit 2) with
 its name and line. A corrupt line in the middle of events.jsonl is refused rather
 than skipped: it may be a `point_pending` record (skipping it only costs a

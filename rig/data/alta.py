@@ -15,7 +15,7 @@ Conventions of the conversion to rig angles (docs/geometry.md):
   φV = atan2(θV·sin Δφ, θV·cos Δφ), i.e. Δφ = φV − φL. We keep that: φi = 0,
   φo = Δφ. Retroreflection (ωo = ωi) is then Δφ = 0, at (+θL, 0) in the
   projected plane, and the mirror direction at (−θL, 0). Checked on the CEA
-  tapes (tests/test_import.py): the side θV·cos Δφ ≥ 0 holds the broad
+  tapes (tests/data/test_import.py): the side θV·cos Δφ ≥ 0 holds the broad
   retroreflection lobe and the instrument's blind ring around exact
   retroreflection; the other side holds a narrow specular peak of the top film.
 - `INV_STERADIAN_COSINE_FACTOR` (f·cos θV) is divided by cos θV; points with

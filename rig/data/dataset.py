@@ -39,7 +39,7 @@ BRDF_COLUMNS = (
     "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
     # project columns after the contract's
     "u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s",
-    # relative uncertainty budget (k = 1), see rig/budget.py
+    # relative uncertainty budget (k = 1), see rig/physics/budget.py
     "u_rel_noise", "u_rel_dark", "u_rel_texture", "u_rel_calibration", "u_rel_illuminance", "u_rel_drift",
     "u_rel_angle",
 )
@@ -233,7 +233,7 @@ class DatasetWriter:
     """Creates a new dataset folder and appends to it; refuses to touch an existing dataset
     (`reopen` continues one, for a resume).
 
-    One writer per folder: an exclusive lock (rig/folderlock.py) is held from the constructor
+    One writer per folder: an exclusive lock (rig/data/folderlock.py) is held from the constructor
     (or `reopen`) until `close()`; a second writer gets DatasetError naming the holder.
 
     A full disk: the first write that fails with ENOSPC/EDQUOT raises DiskFullError and frees
@@ -242,7 +242,7 @@ class DatasetWriter:
     record `failed`. Rows that could not be written are counted in `unwritten_rows`; they are not
     in brdf.csv, so `--resume` measures them again.
 
-    `space_needed_bytes`: the estimated size of the finished dataset (rig/diskspace.py), for the
+    `space_needed_bytes`: the estimated size of the finished dataset (rig/acquisition/diskspace.py), for the
     message of a full disk.
     """
 

@@ -7,7 +7,7 @@ order is the campaign's (`table`) or a travel-time optimised one
 (`optimised`, rig.planning.ordering); both are deterministic, so a resume that rebuilds
 the plan gets the same order. Moves through the rig's forbidden zones
 (rig.planning.collisions) are checked in the final order. The work grows linearly with
-the points (tests/test_plan_scaling.py counts it): nothing scans all points per
+the points (tests/planning/test_plan_scaling.py counts it): nothing scans all points per
 series, repeated views are found with a k-d tree, and the ordering goes block by block.
 """
 

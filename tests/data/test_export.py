@@ -6,14 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 
 from rig.cli.main import main
 from rig.data import export as ex
 from rig.data.alta import read_alta
 from rig.data.dataset import load
 from rig.data.importer import import_alta
-
-CAMPAIGN = Path(__file__).resolve().parent / "campaigns" / "e2e-reduced.yaml"
 
 
 @pytest.fixture(scope="module")

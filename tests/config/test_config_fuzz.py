@@ -18,12 +18,12 @@ from typing import Any
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from repo_paths import ROOT
 from test_campaign_property import field_strategy
 
 from rig.cli.main import main
 from rig.config.campaign import Capture
 
-ROOT = Path(__file__).resolve().parents[1]
 RIGS = ROOT / "campaigns" / "rigs"
 TINY = {
     "name": "tiny",

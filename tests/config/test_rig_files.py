@@ -1,17 +1,15 @@
 """Rig files: the shipped ones load, the simulated one is the default, bad ones are refused clearly."""
 
-from pathlib import Path
 
 import pytest
 import yaml
+from repo_paths import E2E_CAMPAIGN, RIGS
 from rig.simulators.clock import SimClock
 
 from rig.cli.main import main
 from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
 from rig.core.errors import DeviceError
 from rig.devices import connect_devices, vendor_camera
-
-RIGS = Path(__file__).resolve().parents[1] / "campaigns" / "rigs"
 
 
 def test_simulated_rig_file_is_the_default():
@@ -80,7 +78,7 @@ def test_rig_devices_bad_file(tmp_path, capsys):
 
 
 def test_run_with_rig_option(tmp_path):
-    campaign = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
+    campaign = E2E_CAMPAIGN
     assert main(["plan", str(campaign), "--rig", str(RIGS / "simulated.yaml")]) == 0
 
 

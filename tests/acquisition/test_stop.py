@@ -3,7 +3,7 @@
 In-process runs use a paced simulated clock (RIG_SIM_PACE: one rig second takes PACE wall
 seconds), so that another thread can ask for a stop while the runner is inside a long wait,
 as a Ctrl+C would; every assertion on time is on rig time. The `rig run` tests signal a real
-process, as tests/test_resume.py does.
+process, as tests/acquisition/test_resume.py does.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from typing import Callable
 
 import pytest
 import yaml
+from repo_paths import ROOT
 from rig.drivers.interfaces import RigDevices
 from rig.drivers.wallclock import WallClock
 from rig.simulators.clock import SimClock
@@ -37,7 +38,6 @@ from rig.data.dataset import DatasetWriter
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
-ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
 #: Wall seconds per rig second of the paced runs: a 300 s warm-up lasts 0.6 s.
 PACE = 0.002

@@ -2,15 +2,13 @@
 faults, a device outage, an axis alarm and a lamp burn-out with replacement; the final dataset
 holds exactly the fault-free run's points, values within uncertainty, nothing lost."""
 
-from pathlib import Path
 
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.simulators.faults import FaultSchedule
 
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.session.soak import compare, run_fault_free, run_with_faults
-
-CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
 
 def test_soak_reduced(tmp_path):

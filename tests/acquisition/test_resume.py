@@ -15,13 +15,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig_process import pending_points, start_rig, wait_until
 
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.planning.plan import build_plan
-
-CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
 
 def signal_after(proc, folder: Path, n_points: int, sig: int) -> None:

@@ -1,10 +1,10 @@
 """Travel-time ordering: a permutation of the table plan, series contiguous, deterministic, and faster."""
 
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from rig.config.campaign import load_campaign, parse_campaign
 from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig, camera_optics
@@ -24,7 +24,6 @@ from rig.planning.ordering import (
 )
 from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
 
-ROOT = Path(__file__).resolve().parents[1]
 RIG = RigConfig()
 
 

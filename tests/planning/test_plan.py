@@ -1,9 +1,9 @@
 """Planner: Table 1 × Table 2, stable ids, and every left-out point with its reason."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from rig.config.campaign import load_campaign, parse_campaign
 from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig
@@ -12,7 +12,6 @@ from rig.physics.geometry import AxisLimits
 from rig.planning.plan import build_plan, estimate_rig_time_s, move_time_s, viewing_directions
 from rig.planning.points import SKIP_REASONS
 
-ROOT = Path(__file__).resolve().parents[1]
 TABLE2_THETA = [3.3, 10.7, 21.3, 34.8, 50.8, 69.3]
 TABLE2_PHI = [25.7, 51.4, 77.1, 102.9, 128.6, 154.3, 180, 205.7, 231.4, 257.1, 282.9, 308.6, 334.3, 360]
 

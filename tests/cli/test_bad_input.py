@@ -5,10 +5,10 @@ from pathlib import Path
 
 import pytest
 import yaml
+from repo_paths import ROOT
 
 from rig.cli.main import main
 
-ROOT = Path(__file__).resolve().parents[1]
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())
 
 

@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 import pytest
+from repo_paths import E2E_CAMPAIGN
 
 from rig.cli.main import main
 from rig.data.dataset import BRDF_COLUMNS
@@ -30,8 +31,7 @@ def column(rows, name):
 @pytest.fixture(scope="module")
 def reduced_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("e2e") / "ds"
-    from pathlib import Path
-    campaign = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
+    campaign = E2E_CAMPAIGN
     assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
     return out
 

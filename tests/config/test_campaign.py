@@ -1,13 +1,12 @@
 """Campaign files: the shipped ones load; every bad file gives one message naming key, value, rule."""
 
-from pathlib import Path
 
 import pytest
 import yaml
+from repo_paths import ROOT
 
 from rig.config.campaign import CampaignError, load_campaign, parse_campaign
 
-ROOT = Path(__file__).resolve().parents[1]
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())
 
 

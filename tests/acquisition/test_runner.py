@@ -6,11 +6,11 @@ campaign runs, from the progress callback; the camera, an in-process device, is 
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from repo_paths import ROOT
 from rig.simulators.rig import SimulatedRig
 
 from rig.acquisition.engine import Runner
@@ -22,8 +22,6 @@ from rig.core.errors import DeviceError
 from rig.data.dataset import DatasetWriter
 from rig.data.images import read_luminance_exr
 from rig.planning.plan import build_plan
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def small_campaign(**extra):

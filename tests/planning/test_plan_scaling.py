@@ -56,7 +56,7 @@ def moves_evaluated(monkeypatch, fn: Callable[..., Any], *args: Any) -> tuple[in
 
 
 def lines_run(fn: Callable[..., Any], *args: Any) -> tuple[int, Any]:
-    """Number of Python lines run in rig/plan.py and rig/ordering.py in fn(*args), and what it returns."""
+    """Number of Python lines run in rig/planning/plan.py and rig/planning/ordering.py in fn(*args), and what it returns."""
     files = {str(Path(module.__file__)) for module in (plan, ordering)}
     count = 0
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 from rig_process import pending_points, start_rig, wait_until
 
 from rig.acquisition import diskspace
@@ -30,7 +31,6 @@ from rig.data.dataset import DatasetWriter, DiskFullError, load
 from rig.data.images import write_luminance_exr
 from rig.planning.plan import build_plan
 
-ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
 PAPER = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"
 Usage = namedtuple("Usage", "total used free")

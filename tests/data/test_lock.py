@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig_process import events_text, pending_points, start_rig, wait_until
 
 from rig.config.campaign import load_campaign
@@ -23,8 +24,6 @@ from rig.config.rigfile import RigConfig
 from rig.data.dataset import DatasetError, DatasetWriter
 from rig.data.folderlock import LOCK_NAME, FolderLock, FolderLockedError
 from rig.planning.plan import build_plan
-
-CAMPAIGN = Path(__file__).parent / "campaigns" / "e2e-reduced.yaml"
 
 
 def lock_holder(folder: Path) -> str:

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.image import imread
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 
 from rig.analysis import plots
 from rig.cli.main import main
 from rig.data.dataset import load
 
-CAMPAIGN = Path(__file__).resolve().parent / "campaigns" / "e2e-reduced.yaml"
 FIT_RGB = np.array([0xD6, 0x27, 0x28]) / 255          # plots.FITTED
 
 

@@ -5,10 +5,10 @@ under the ROI) make a single campaign's coverage a lumpy statistic, so it is poo
 independent simulated rigs (seeds): RetroPhong RM1 and the steep RM3 (n = 68), θi up to 85°.
 """
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TEST_CAMPAIGNS as CAMPAIGNS
 
 from rig.acquisition.execute import execute
 from rig.config.campaign import load_campaign
@@ -18,7 +18,6 @@ from rig.physics.brdf_models import get_model
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
-CAMPAIGNS = Path(__file__).parent / "campaigns"
 SEEDS = range(1, 7)
 
 
