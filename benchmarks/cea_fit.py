@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig.analysis.fit import fit  # noqa: E402
-from rig.data.dataset import load  # noqa: E402
+from rig.data.dataset_reader import load  # noqa: E402
 from rig.data.importer import import_alta  # noqa: E402
 from rig.session.bench import machine  # noqa: E402
 

@@ -34,18 +34,18 @@ from scipy.optimize import least_squares
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.analysis.fit import (
+from rig.analysis.fit import (  # noqa: E402
     DE_MAXITER,
     DE_POPSIZE,
     GLOBAL_POINTS,
     FitResult,
     fit_dataset,
-    format_comparison,
 )
-from rig.cli.main import main as rig_main
-from rig.data.dataset import Dataset, load
-from rig.physics.brdf_models import MODELS
-from rig.session.bench import machine
+from rig.cli.fit import format_comparison  # noqa: E402
+from rig.cli.main import main as rig_main  # noqa: E402
+from rig.data.dataset_reader import Dataset, load  # noqa: E402
+from rig.physics.brdf_models import MODELS  # noqa: E402
+from rig.session.bench import machine  # noqa: E402
 
 RMS = ("rm1", "rm2", "rm3")
 #: Spieringhs et al. 2023 Table 7 (RetroPhong) and the paper's own goodness of fit (Table 3).

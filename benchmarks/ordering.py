@@ -34,7 +34,7 @@ from rig.config.rigfile import RigConfig, load_rig_config  # noqa: E402
 from rig.planning.collisions import zones_of  # noqa: E402
 from rig.planning.ordering import START_DEG, arm_branches, choose_branches, order_plan  # noqa: E402
 from rig.planning.plan import build_plan, estimate_rig_time_s  # noqa: E402
-from rig.planning.points import Plan
+from rig.planning.points import Plan  # noqa: E402
 from rig.session.bench import machine  # noqa: E402
 
 
@@ -63,8 +63,8 @@ def report(path: Path, rig: RigConfig, repeat: int) -> float:
     campaign = load_campaign(path)
     plans = timed_plans(campaign, rig, repeat)
     (table, t_wall), (opt, o_wall) = plans["table"], plans["optimised"]
-    same_branch = order_plan(table, rig, START_DEG, switch_branches=False)
-    table_s, opt_s, same_s, best_s = (estimate_rig_time_s(p, rig, NOMINAL_CAPTURE_S)
+    same_branch = order_plan(table, rig.axes, zones_of(rig), START_DEG, switch_branches=False)
+    table_s, opt_s, same_s, best_s = (estimate_rig_time_s(p, rig.axes, NOMINAL_CAPTURE_S)
                                       for p in (table, opt, same_branch, with_best_branches(table, rig)))
     before = {p.point_id: p.motors_deg for p in table.points}
     switched = sum(p.motors_deg != before[p.point_id] for p in opt.points)

@@ -26,18 +26,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.drivers.modbus_axis import ModbusAxisController  # noqa: E402
-from rig.drivers.transport import LineTransport  # noqa: E402
-from rig.simulators.rig import SimulatedRig  # noqa: E402
-
 from rig.acquisition.engine import Runner  # noqa: E402
 from rig.acquisition.execute import manifest_for  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.core.values import Window  # noqa: E402
 from rig.data.dataset import DatasetWriter  # noqa: E402
+from rig.drivers.modbus_axis import ModbusAxisController  # noqa: E402
+from rig.drivers.transport import LineTransport  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.bench import machine  # noqa: E402
+from rig.simulators.rig import SimulatedRig  # noqa: E402
 
 
 class Timed:

@@ -69,7 +69,7 @@ def main() -> int:
         t2, cpu2 = time.perf_counter(), time.process_time()
         per_point = (cpu2 - cpu0) / max(1, opt.n_planned)
         base = base or per_point
-        gain = estimate_rig_time_s(opt, rig, 0.0) / estimate_rig_time_s(table, rig, 0.0)
+        gain = estimate_rig_time_s(opt, rig.axes, 0.0) / estimate_rig_time_s(table, rig.axes, 0.0)
         print(f"{len(opt.series):7d} {len(opt.points):7d} {t1 - t0:8.2f} {t2 - t1:8.2f} {per_point * 1e3:12.3f} "
               f"{per_point / base:7.2f} {gain:18.3f}", flush=True)
     ratio = per_point / base

@@ -16,13 +16,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.simulators.faults import FaultSchedule  # noqa: E402
-
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.bench import machine  # noqa: E402
 from rig.session.soak import compare, run_fault_free, run_with_faults  # noqa: E402
+from rig.simulators.faults import FaultSchedule  # noqa: E402
 
 
 def main() -> int:

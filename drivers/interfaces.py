@@ -19,7 +19,15 @@ from rig.core.clock import Clock
 from rig.core.values import Frame, IlluminanceReading, SensorInfo, Window
 
 
-class Axis(abc.ABC):
+class Device:
+    """What every device has: a connection to close. A plain base, not abstract: most devices have
+    nothing to release, and those that do override `close`."""
+
+    def close(self) -> None:
+        """Release the connection; the default has nothing to release."""
+
+
+class Axis(Device, abc.ABC):
     """One motorised rotation axis (degrees)."""
 
     name: str
@@ -54,9 +62,6 @@ class Axis(abc.ABC):
     def identity(self) -> str:
         return self.name
 
-    def close(self) -> None:
-        """Release the connection; the default has nothing to release."""
-
 
 class TwoAxisPositioner:
     """Two axes moved together: the goniometer camera arm or the sample stage.
@@ -70,8 +75,16 @@ class TwoAxisPositioner:
         self.axes = (first, second)
 
     def move_to(self, first_deg: float, second_deg: float, timeout_s: float | None = None) -> None:
+        self.start_move(first_deg, second_deg)
+        self.wait(timeout_s)
+
+    def start_move(self, first_deg: float, second_deg: float) -> None:
+        """Start both axes and return at once, so that the other positioner can start too."""
         for axis, target in zip(self.axes, (first_deg, second_deg)):
             axis.start_move(target)
+
+    def wait(self, timeout_s: float | None = None) -> None:
+        """Block until both axes are in position; DeviceError on alarm or timeout."""
         for axis in self.axes:
             axis.wait(timeout_s)
 
@@ -104,7 +117,7 @@ class TwoAxisPositioner:
             axis.close()
 
 
-class LampSupply(abc.ABC):
+class LampSupply(Device, abc.ABC):
     """DC supply of the halogen lamp, driven in constant-current mode."""
 
     @abc.abstractmethod
@@ -126,11 +139,8 @@ class LampSupply(abc.ABC):
     @abc.abstractmethod
     def measure_voltage_v(self) -> float: ...
 
-    def close(self) -> None:
-        """Release the connection; the default has nothing to release."""
 
-
-class IlluminanceMeter(abc.ABC):
+class IlluminanceMeter(Device, abc.ABC):
     """Optometer reading E⊥ at the sample position (perpendicular incidence)."""
 
     @abc.abstractmethod
@@ -140,11 +150,8 @@ class IlluminanceMeter(abc.ABC):
     def read(self) -> IlluminanceReading:
         """One reading; illuminance = photocurrent × calibration factor from configuration."""
 
-    def close(self) -> None:
-        """Release the connection; the default has nothing to release."""
 
-
-class LuminanceCamera(abc.ABC):
+class LuminanceCamera(Device, abc.ABC):
     """Calibrated luminance camera: raw frames plus the calibration to cd/m²."""
 
     sensor: SensorInfo
@@ -162,9 +169,6 @@ class LuminanceCamera(abc.ABC):
 
     def full_window(self) -> Window:
         return Window(0, 0, self.sensor.width_px, self.sensor.height_px)
-
-    def close(self) -> None:
-        """Release the connection; the default has nothing to release."""
 
 
 @dataclass

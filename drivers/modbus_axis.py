@@ -1,133 +1,64 @@
 """Two-axis motion controller over Modbus TCP or RTU, as `Axis` objects.
 
-The register map (docs/modbus-axis-register-map.md) follows industrial drives
-such as the Oriental Motor AZ series: one block of int32 register pairs per
-axis, upper word first, always read or written as whole pairs in one request.
-The map is defined here once; the simulated controller serves the same one.
+The register map (docs/modbus-axis-register-map.md, as data in
+`rig.drivers.modbus_axis_map`) follows industrial drives such as the Oriental
+Motor AZ series; the simulated controller serves the same one.
 
 One request per action: a move writes target, speed, acceleration and the
 START command in one read/write transaction (FC 23) whose read half returns
 the state the move starts from, so `wait` can sleep the predicted move time and
 then confirm it with a single status read. No reply, a dropped link or a
 garbled frame is transient (retried after a reconnect, reported as an event);
-a Modbus exception reply or an alarm is not.
+a Modbus exception reply or an alarm is not. The client comes from
+`open_client` (`modbus_client` by default), so a test can replay a scripted
+exchange of exact PDUs in memory.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
-from enum import IntEnum, IntFlag
 from urllib.parse import parse_qs
 
 from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
-from pymodbus.client.mixin import ModbusClientMixin
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
-
-# Every failed exchange becomes a DeviceError or a retry event of ours, naming the axis
-# and register; pymodbus' own ERROR lines (with hex dumps) would only repeat them.
-logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 from pymodbus.pdu import ModbusPDU
-from rig.drivers.interfaces import Axis
-from rig.drivers.retry import RetryPolicy, call_with_retry
-from rig.drivers.transport import EventSink, no_events
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.motion import move_time_s
+from rig.drivers.interfaces import Axis
+from rig.drivers.modbus_axis_map import (
+    ALARMS,
+    IDENTITY_REGS,
+    STATE_REGS,
+    TEXT_REGS,
+    VENDOR,
+    Command,
+    Reg,
+    Status,
+    axis_base,
+    int32_to_regs,
+    regs_to_int32,
+    regs_to_text,
+)
+from rig.drivers.retry import DEFAULT_RETRY, RetryingDevice, RetryPolicy
 
-# -- register map -------------------------------------------------------------------------------
-VENDOR, MODEL, FIRMWARE, AXIS_COUNT = 0x0000, 0x0008, 0x0010, 0x0014   # identity block
-TEXT_REGS = {VENDOR: 8, MODEL: 8, FIRMWARE: 4}                         # ASCII, 2 characters a register
-IDENTITY_REGS = AXIS_COUNT + 2
-
-
-class Reg(IntEnum):
-    """Offsets in the block of axis k at `axis_base(k)`; every entry is an int32 pair."""
-
-    TARGET = 0x00        # steps                      read/write
-    SPEED = 0x02         # steps/s                    read/write
-    ACCEL = 0x04         # steps/s², also deceleration read/write
-    COMMAND = 0x06       # Command bits, self-clearing read/write
-    STATUS = 0x08        # Status bits                read
-    ALARM = 0x0A         # present alarm code, 0=none read
-    ENCODER = 0x0C       # feedback position, steps   read
-    COMMAND_POS = 0x0E   # command position, steps    read
-    LIMIT_LOW = 0x10     # soft limits, steps         read
-    LIMIT_HIGH = 0x12
-
-
-BLOCK_REGS = 0x14
-MOVE_REGS = Reg.STATUS - Reg.TARGET           # target, speed, accel, command: one write
-STATE_REGS = Reg.LIMIT_LOW - Reg.STATUS       # status, alarm, encoder, command position: one read
-
-
-class Command(IntFlag):
-    START = 0x01         # move to TARGET at SPEED/ACCEL
-    STOP = 0x02          # decelerate to a stop
-    HOME = 0x04          # return to the home sensor; sets HOMED and command position 0
-    ALARM_RESET = 0x08
-
-
-class Status(IntFlag):
-    READY = 0x01         # no alarm, not busy: accepts a command
-    BUSY = 0x02          # moving or settling
-    IN_POSITION = 0x04   # move finished and settled
-    ALARM = 0x08         # code in ALARM; START/HOME ignored until ALARM_RESET
-    HOMED = 0x10
-
-
-class Alarm(IntEnum):
-    DEVIATION = 0x10
-    OVERLOAD = 0x30
-    HOMING_FAILED = 0x62
-    OVERTRAVEL = 0x67
-
-
-ALARMS = {
-    Alarm.DEVIATION: "excessive position deviation: stall or obstruction",
-    Alarm.OVERLOAD: "overload",
-    Alarm.HOMING_FAILED: "homing failed",
-    Alarm.OVERTRAVEL: "software overtravel: target beyond the soft limits",
-}
-
-
-def axis_base(index: int) -> int:
-    return 0x0100 * (index + 1)
-
-
-def int32_to_regs(*values: int) -> list[int]:
-    """Register pairs, upper word first (pymodbus word_order='big')."""
-    return ModbusClientMixin.convert_to_registers(list(values), ModbusClientMixin.DATATYPE.INT32)
-
-
-def regs_to_int32(regs: Sequence[int]) -> list[int]:
-    values = ModbusClientMixin.convert_from_registers(list(regs), ModbusClientMixin.DATATYPE.INT32)
-    return values if isinstance(values, list) else [values]
-
-
-def text_to_regs(text: str, n_regs: int) -> list[int]:
-    """ASCII, first character in the high byte, NUL padded to `n_regs` registers."""
-    regs = ModbusClientMixin.convert_to_registers(text, ModbusClientMixin.DATATYPE.STRING,
-                                                  string_encoding="ascii")
-    if len(regs) > n_regs:
-        raise ValueError(f"{text!r} does not fit {n_regs} registers")
-    return regs + [0] * (n_regs - len(regs))
-
-
-def regs_to_text(regs: Sequence[int]) -> str:
-    return ModbusClientMixin.convert_from_registers(list(regs), ModbusClientMixin.DATATYPE.STRING,
-                                                    string_encoding="ascii")
-
+# Every failed exchange becomes a DeviceError or a retry event of ours, naming the axis
+# and register; pymodbus' own ERROR lines (with hex dumps) would only repeat them.
+logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 # -- transport ----------------------------------------------------------------------------------
-_SERIAL_OPTIONS = {"baudrate": int, "parity": str, "stopbits": int, "bytesize": int}
+_SERIAL_OPTIONS = ("baudrate", "parity", "stopbits", "bytesize")
+ModbusClient = ModbusTcpClient | ModbusSerialClient
+#: `modbus_client`'s signature: how a controller gets its client.
+ClientOpener = Callable[[str, float], ModbusClient]
 
 
-def modbus_client(url: str, timeout_s: float) -> ModbusTcpClient | ModbusSerialClient:
+def modbus_client(url: str, timeout_s: float) -> ModbusClient:
     """`modbus-tcp://host:port` or `modbus-rtu://<device path or pyserial URL>?baudrate=N`.
 
     pymodbus' own retries are off: retries, reconnects and their events are ours.
@@ -140,12 +71,14 @@ def modbus_client(url: str, timeout_s: float) -> ModbusTcpClient | ModbusSerialC
         return ModbusTcpClient(host, port=int(port), timeout=timeout_s, retries=0)
     if scheme == "modbus-rtu":
         port, _, query = rest.partition("?")
-        options = {"baudrate": 115200}
-        for key, values in parse_qs(query).items():
+        options = {key: values[-1] for key, values in parse_qs(query).items()}
+        for key in options:
             if key not in _SERIAL_OPTIONS:
                 raise ValueError(f"{url!r}: unknown option {key!r} (known: {', '.join(_SERIAL_OPTIONS)})")
-            options[key] = _SERIAL_OPTIONS[key](values[-1])
-        return ModbusSerialClient(port, framer=FramerType.RTU, timeout=timeout_s, retries=0, **options)
+        # pymodbus' defaults, except the baud rate: 115200 is the AZ drives' factory setting
+        return ModbusSerialClient(port, framer=FramerType.RTU, timeout=timeout_s, retries=0,
+                                  baudrate=int(options.get("baudrate", 115200)), parity=options.get("parity", "N"),
+                                  stopbits=int(options.get("stopbits", 1)), bytesize=int(options.get("bytesize", 8)))
     raise ValueError(f"{url!r}: expected modbus-tcp://host:port or modbus-rtu://<port>?baudrate=N")
 
 
@@ -156,18 +89,15 @@ def _exception_name(code: int) -> str:
         return "unknown exception"
 
 
-class ModbusAxisController:
+class ModbusAxisController(RetryingDevice):
     """One Modbus device (controller) with up to a few axes; owns the connection."""
 
     def __init__(self, url: str, *, device_id: int = 1, name: str, clock: Clock, timeout_s: float = 1.0,
-                 retry: RetryPolicy = RetryPolicy()):
+                 retry: RetryPolicy = DEFAULT_RETRY, open_client: ClientOpener = modbus_client):
+        super().__init__(name, clock, retry)
         self.url = url
         self.device_id = device_id
-        self.name = name
-        self.clock = clock
-        self.retry = retry
-        self.events: EventSink = no_events
-        self._client = modbus_client(url, timeout_s)
+        self._client = open_client(url, timeout_s)
         self._identity: str | None = None
 
     def axis(self, index: int, name: str, steps_per_degree: float, speed_deg_s: float, accel_deg_s2: float,
@@ -204,7 +134,7 @@ class ModbusAxisController:
         return list(reply.registers)
 
     def _exchange(self, device: str, what: str, address: int, count: int,
-                  request: Callable[[ModbusTcpClient | ModbusSerialClient], ModbusPDU]) -> ModbusPDU:
+                  request: Callable[[ModbusClient], ModbusPDU]) -> ModbusPDU:
         where = f"controller {self.name!r}: {what} at register 0x{address:04X} (id {self.device_id}, {self.url})"
 
         def once() -> ModbusPDU:
@@ -220,11 +150,9 @@ class ModbusAxisController:
                                           f"expected {count}", transient=True)
             return reply
 
-        return call_with_retry(once, device=device, what=what, clock=self.clock, policy=self.retry,
-                               on_retry=lambda kind, **fields: self.events(kind, **fields),
-                               reconnect=self._reconnect)
+        return self.retrying(what, once, device=device)
 
-    def _reconnect(self) -> None:
+    def reconnect(self) -> None:
         self._client.close()
         if not self._client.connect():
             raise DeviceError(self.name, f"cannot connect to {self.url}", transient=True)

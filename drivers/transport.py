@@ -4,55 +4,79 @@ Both ASCII instruments (the SCPI lamp supply and the optometer) speak
 request/reply lines; this is the one place that frames lines, enforces the
 terminator (pyserial's readline returns partial data on timeout without
 raising), reconnects a dropped link and turns every failure into a
-`DeviceError` naming the device and what it answered.
+`DeviceError` naming the device and what it answered. The port comes from
+`open_port` (pyserial by default), so a test can put an in-memory port with a
+scripted protocol under a real driver.
 """
 
 from __future__ import annotations
 
 import socket
-from typing import Callable
+from typing import Any, Protocol
 
 import serial
 
 from rig.core.errors import DeviceError
 
-EventSink = Callable[..., None]
+
+class Port(Protocol):
+    """The part of a pyserial port the transport uses."""
+
+    is_open: bool
+
+    def write(self, data: bytes, /) -> int | None: ...
+    def flush(self) -> None: ...
+    def reset_input_buffer(self) -> None: ...
+    def read_until(self, expected: bytes = ..., size: int | None = ...) -> bytes: ...
+    def close(self) -> None: ...
 
 
-def no_events(kind: str, **fields) -> None:
-    """Default event sink: drivers report retries and reconnects; nobody listens."""
+class PortOpener(Protocol):
+    """`serial.serial_for_url`'s signature, as far as the transport calls it."""
+
+    def __call__(self, url: str, *, baudrate: int, timeout: float, write_timeout: float) -> Port: ...
+
+
+def open_pyserial(url: str, *, baudrate: int, timeout: float, write_timeout: float) -> Port:
+    port: Port = serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)
+    return port
 
 
 class LineTransport:
     def __init__(self, device: str, url: str, *, terminator: bytes = b"\n", timeout_s: float = 2.0,
-                 baudrate: int = 9600, write_terminator: bytes | None = None):
+                 baudrate: int = 9600, write_terminator: bytes | None = None, open_port: PortOpener = open_pyserial):
         self.device = device
         self.url = url
         self.terminator = terminator
         self.write_terminator = terminator if write_terminator is None else write_terminator
         self.timeout_s = timeout_s
         self.baudrate = baudrate
-        self._port: serial.SerialBase | None = None
+        self._open_port = open_port
+        self._port: Port | None = None
 
     # -- connection ---------------------------------------------------------------------------
-    def open(self) -> None:
+    def open(self) -> Port:
+        """The open port, opening it first if needed."""
         if self._port is not None:
-            return
+            return self._port
         try:
-            self._port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.timeout_s,
-                                               write_timeout=self.timeout_s)
+            port = self._open_port(self.url, baudrate=self.baudrate, timeout=self.timeout_s,
+                                   write_timeout=self.timeout_s)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise DeviceError(self.device, f"cannot open {self.url}: {exc}", transient=True) from None
-        tcp = getattr(self._port, "_socket", None)
+        tcp = getattr(port, "_socket", None)
         if isinstance(tcp, socket.socket):
             # A setting followed by its error-queue query is two small writes before a read:
             # without TCP_NODELAY, Nagle + delayed ACK stall each exchange by ~40 ms.
             tcp.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._port = port
+        return port
 
     def close(self) -> None:
         if self._port is None:
             return
-        port, self._port = self._port, None
+        port: Any = self._port
+        self._port = None
         tcp = getattr(port, "_socket", None)
         if isinstance(tcp, socket.socket):
             # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a reconnect
@@ -68,24 +92,25 @@ class LineTransport:
 
     # -- exchange ------------------------------------------------------------------------------
     def write_line(self, line: str) -> None:
-        self.open()
+        port = self.open()
         try:
-            self._port.reset_input_buffer()      # a late reply to an earlier request must not pair with this one
-            self._port.write(line.encode("ascii") + self.write_terminator)
-            self._port.flush()
+            port.reset_input_buffer()      # a late reply to an earlier request must not pair with this one
+            port.write(line.encode("ascii") + self.write_terminator)
+            port.flush()
         except (serial.SerialException, OSError) as exc:
             self.close()
             raise DeviceError(self.device, f"connection lost while sending {line!r}: {exc}", transient=True) from None
 
     def read_line(self, request: str) -> str:
+        port = self.open()
         try:
-            raw = self._port.read_until(self.terminator)
+            raw = port.read_until(self.terminator)
         except (serial.SerialException, OSError) as exc:
             self.close()
             raise DeviceError(self.device, f"connection lost waiting for the reply to {request!r}: {exc}",
                               transient=True) from None
         if not raw.endswith(self.terminator):
-            if raw == b"" and getattr(self._port, "is_open", True) is False:
+            if raw == b"" and getattr(port, "is_open", True) is False:
                 self.close()
             raise DeviceError(self.device, f"no complete reply to {request!r} within {self.timeout_s} s "
                               f"(got {raw!r})", transient=True)

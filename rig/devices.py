@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+from collections.abc import Callable
 from pathlib import Path
 
 from rig.config.files import clip
@@ -87,8 +88,9 @@ def vendor_camera(config: RigConfig, dev: CameraDevice) -> LuminanceCamera:
         cls = camera_class(dev, config.camera)
     except RigConfigError as exc:
         raise DeviceError("camera", str(exc)) from None
+    build: Callable[..., LuminanceCamera] = cls      # the plug-in's constructor, checked by camera_class
     try:
-        return cls(config.camera, **dev.options)
+        return build(config.camera, **dev.options)
     except DeviceError:
         raise
     except Exception as exc:        # the vendor SDK's own exceptions: the camera did not start

@@ -21,11 +21,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from rig.drivers.modbus_axis import Alarm
-from rig.simulators.world import SimWorld
-
 from rig.config.rigfile import AxisConfig
 from rig.core.motion import move_time_s, position_at
+from rig.drivers.modbus_axis_map import Alarm
+from rig.simulators.world import SimWorld
 
 
 @dataclass(frozen=True)

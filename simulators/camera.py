@@ -11,16 +11,16 @@ view and the camera's shadow are not modelled: the planner excludes those points
 from __future__ import annotations
 
 import numpy as np
-from rig.drivers.interfaces import LuminanceCamera
-from rig.simulators.sensor import SensorModel
-from rig.simulators.texture import GlintTexture, ValueNoiseTexture
-from rig.simulators.world import SimWorld
 
 from rig.config.rigfile import camera_optics
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, Window
+from rig.drivers.interfaces import LuminanceCamera
 from rig.physics.geometry import LAMP_DIRECTION_GCS, sample_frame
 from rig.physics.optics import faces_lamp, in_beam, intersect_sample_plane, pixel_rays
+from rig.simulators.sensor import SensorModel
+from rig.simulators.texture import GlintTexture, ValueNoiseTexture
+from rig.simulators.world import SimWorld
 
 
 class SimCamera(LuminanceCamera):

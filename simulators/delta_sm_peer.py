@@ -14,123 +14,17 @@ an erroneous command is not executed and queues an error, queries included
 
 from __future__ import annotations
 
-import selectors
-import socket
-import threading
 from collections import deque
 from collections.abc import Callable
-from typing import Self
 
+from rig.simulators.faults import LAMP_FAULTS
+from rig.simulators.line_peer import LinePeer
 from rig.simulators.world import SimWorld
 
-FAULTS = ("no_reply", "garbled", "short", "disconnect", "error_queue", "burnout")
-#: Faults that spoil the reply to the next query (the query itself is executed).
-REPLY_FAULTS = ("no_reply", "garbled", "short", "disconnect")
 ERROR_QUEUE_SIZE = 10
 NO_ERROR = "0,None"
 #: What `inject("error_queue")` pushes: the supply reporting a fault of its own.
 DEVICE_FAULT = (-300, "Device-specific error")
-_QUICKACK = getattr(socket, "TCP_QUICKACK", None)       # Linux only
-
-
-class HangUp(Exception):
-    """Raised by `TcpLinePeer.respond` to drop the connection instead of answering."""
-
-
-class TcpLinePeer:
-    """A line-oriented instrument on a free loopback TCP port; subclasses say what it answers."""
-
-    def __init__(self) -> None:
-        self.url: str | None = None
-        self._listener: socket.socket | None = None
-        self._wake: tuple[socket.socket, socket.socket] | None = None
-        self._thread: threading.Thread | None = None
-
-    def respond(self, line: bytes) -> bytes | None:
-        """Bytes to send back for one received line (terminator stripped); None sends nothing."""
-        raise NotImplementedError
-
-    # -- lifecycle ----------------------------------------------------------------------------
-    def start(self) -> str:
-        """Listen on a free loopback port; returns `socket://127.0.0.1:PORT` for pyserial."""
-        if self._thread is not None:
-            raise RuntimeError(f"{type(self).__name__} already started on {self.url}")
-        self._listener = socket.create_server(("127.0.0.1", 0))
-        self._wake = socket.socketpair()
-        self.url = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
-        self._thread = threading.Thread(target=self._serve, name=f"{type(self).__name__} {self.url}",
-                                        daemon=True)
-        self._thread.start()
-        return self.url
-
-    def stop(self) -> None:
-        """Close every connection and the listener, join the server thread; safe to call twice."""
-        if self._thread is None:
-            return
-        self._wake[1].send(b"x")
-        self._thread.join()
-        for sock in (self._listener, *self._wake):
-            sock.close()
-        self._thread = self._listener = self._wake = None
-
-    def __enter__(self) -> Self:
-        self.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-    # -- server -------------------------------------------------------------------------------
-    def _serve(self) -> None:
-        """One thread serves the listener and every connection (clients may reconnect at will)."""
-        sel = selectors.DefaultSelector()
-        sel.register(self._listener, selectors.EVENT_READ)
-        sel.register(self._wake[0], selectors.EVENT_READ)
-        pending: dict[socket.socket, bytes] = {}
-        try:
-            while True:
-                for key, _ in sel.select():
-                    sock = key.fileobj
-                    if sock is self._wake[0]:
-                        return
-                    if sock is self._listener:
-                        try:
-                            conn, _ = sock.accept()
-                        except OSError:               # the client gave up before we got to it
-                            continue
-                        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                        sel.register(conn, selectors.EVENT_READ)
-                        pending[conn] = b""
-                    elif not self._receive(sock, pending):
-                        sel.unregister(sock)
-                        del pending[sock]
-                        sock.close()
-        finally:
-            for conn in pending:
-                conn.close()
-            sel.close()
-
-    def _receive(self, conn: socket.socket, pending: dict[socket.socket, bytes]) -> bool:
-        """Answer the complete lines received; False when the connection is over."""
-        try:
-            data = conn.recv(4096)
-        except OSError:
-            return False
-        if not data:
-            return False
-        # ACK at once: a setting has no reply to carry the ACK, and the driver's next line would
-        # otherwise wait out Nagle + delayed ACK (~40 ms); Linux clears this flag after each use.
-        if _QUICKACK is not None:
-            conn.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
-        *lines, pending[conn] = (pending[conn] + data).split(b"\n")
-        try:
-            for line in lines:
-                reply = self.respond(line.rstrip(b"\r"))
-                if reply is not None:
-                    conn.sendall(reply)
-        except (HangUp, OSError):
-            return False
-        return True
 
 
 class ScpiError(Exception):
@@ -176,11 +70,13 @@ ON_OFF = {"ON": True, "OFF": False, "1": True, "0": False}
 REMOTE_LOCAL = {"REMote": True, "LOCal": False}
 
 
-class DeltaSMPeer(TcpLinePeer):
+class DeltaSMPeer(LinePeer):
     """Simulated SM supply whose load is `world.lamp`; powers up at 0 V, 0 A, output off, local control."""
 
+    FAULTS = LAMP_FAULTS
+
     def __init__(self, world: SimWorld, *, max_voltage_v: float = 15.0, max_current_a: float = 10.0):
-        super().__init__()
+        super().__init__("tcp")
         self.world = world
         self.max_voltage_v = max_voltage_v
         self.max_current_a = max_current_a
@@ -189,8 +85,6 @@ class DeltaSMPeer(TcpLinePeer):
         self.errors: deque[tuple[int, str]] = deque()
         self.voltage_v = self.current_a = 0.0
         self.output_on = False
-        self._faults: deque[str] = deque()
-        self._lock = threading.Lock()
         #: (keywords, setter(parameter), getter() -> reply); None where the form does not exist.
         self._commands: list[tuple[tuple[str, ...], Setter | None, Getter | None]] = [
             (("SOURce", "VOLtage"), self._set_voltage, lambda: f"{self.voltage_v:.4f}"),
@@ -211,32 +105,21 @@ class DeltaSMPeer(TcpLinePeer):
 
     def inject(self, fault: str, count: int = 1) -> None:
         """Reply faults spoil the next `count` replies; `error_queue` queues `count` entries; `burnout` now."""
-        if fault not in FAULTS:
-            raise ValueError(f"unknown fault {fault!r}; known: {', '.join(FAULTS)}")
-        if count < 1:
-            raise ValueError(f"count must be at least 1, got {count}")
-        with self._lock:
-            if fault in REPLY_FAULTS:
-                self._faults.extend([fault] * count)
-            elif fault == "error_queue":
+        self.FAULTS.check(fault, count)
+        if fault == "error_queue":
+            with self._lock:
                 for _ in range(count):
                     self._push_error(*DEVICE_FAULT)
-            else:
-                self.world.lamp.burn_out()
+        elif fault == "burnout":
+            self.world.lamp.burn_out()
+        else:
+            super().inject(fault, count)
 
     # -- protocol -----------------------------------------------------------------------------
     def respond(self, line: bytes) -> bytes | None:
-        """The reply as it goes on the wire, after any injected fault."""
+        """The reply as it goes on the wire, after any injected fault (only replies take one)."""
         reply = self.answer(line)
-        if reply is None:
-            return None
-        with self._lock:
-            fault = self._faults.popleft() if self._faults else None
-        if fault == "disconnect":
-            raise HangUp
-        if fault == "no_reply":
-            return None
-        return _spoil(reply.encode("ascii"), fault)
+        return None if reply is None else self.wire(reply, self.take_fault())
 
     # -- SCPI ------------------------------------------------------------------------------
     def answer(self, line: bytes) -> str | None:
@@ -316,11 +199,3 @@ class DeltaSMPeer(TcpLinePeer):
 
     def _remote_state(self, mode: str) -> str:
         return "REMote" if self.remote[mode] else "LOCal"
-
-def _spoil(reply: bytes, fault: str | None) -> bytes:
-    """The bytes that go on the wire for a reply, as damaged by `fault`."""
-    if fault == "garbled":                 # line noise: high bits set, terminator intact
-        return bytes(b | 0x80 for b in reply) + b"\n"
-    if fault == "short":                   # cut off: half the reply, no terminator
-        return reply[:max(len(reply) // 2, 1)]
-    return reply + b"\n"

@@ -1,24 +1,47 @@
-"""Random fault schedules for soak runs: what to inject into which protocol peer, and when.
+"""Fault names of every protocol peer, and random fault schedules for soak runs.
 
-A schedule is data (seeded, reproducible); the injector is a progress callback
-that fires each fault once the run has completed the fault's point count, and
-replaces a burnt-out lamp after the operator's delay (rig time).
+The names are defined here once: each peer checks an injection against its
+entry, and the soak schedules draw from the same entries. A schedule is data
+(seeded, reproducible); the injector is a progress callback that fires each
+fault once the run has completed the fault's point count, and replaces a
+burnt-out lamp after the operator's delay (rig time).
 """
 
 from __future__ import annotations
 
 import random
 from dataclasses import dataclass, field
+from typing import Any
 
 from rig.core.values import Progress
 
-#: Transient faults per peer that a run must survive with retries only.
-TRANSIENT = {
-    "arm": ("no_reply", "garbled", "disconnect"),
-    "stage": ("no_reply", "garbled", "disconnect"),
-    "lamp": ("no_reply", "garbled", "short", "disconnect"),
-    "meter": ("no_reply", "garbled", "short", "overrange"),
-}
+
+@dataclass(frozen=True)
+class PeerFaults:
+    """What one kind of peer can inject: `transient` faults spoil replies (a run survives them with
+    retries only); `other` ones are the device's own (a refusal, an alarm, a burnt-out lamp)."""
+
+    transient: tuple[str, ...]
+    other: tuple[str, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.transient + self.other
+
+    def check(self, fault: str, count: int) -> None:
+        """ValueError unless `fault` is one of these and `count` at least 1."""
+        if fault not in self.names:
+            raise ValueError(f"unknown fault {fault!r}; known: {', '.join(self.names)}")
+        if count < 1:
+            raise ValueError(f"count must be at least 1, got {count}")
+
+
+LAMP_FAULTS = PeerFaults(("no_reply", "garbled", "short", "disconnect"), ("error_queue", "burnout"))
+METER_FAULTS = PeerFaults(("no_reply", "garbled", "short", "overrange"))
+AXIS_FAULTS = PeerFaults(("no_reply", "garbled", "disconnect"), ("exception", "alarm"))
+#: Transient faults per peer of the simulated rig.
+TRANSIENT = {"arm": AXIS_FAULTS.transient, "stage": AXIS_FAULTS.transient, "lamp": LAMP_FAULTS.transient,
+             "meter": METER_FAULTS.transient}
 
 
 @dataclass(frozen=True)
@@ -36,7 +59,7 @@ class FaultSchedule:
 
     @classmethod
     def random(cls, n_points: int, *, seed: int, transient: int, silences: int = 1, alarm: bool = True,
-               burnout: bool = True) -> "FaultSchedule":
+               burnout: bool = True) -> FaultSchedule:
         """`transient` retry-level faults, `silences` outages longer than the retries, an axis
         alarm and a lamp burn-out, at random points of a run of `n_points`."""
         rng = random.Random(seed)
@@ -65,7 +88,7 @@ class FaultInjector:
     """Progress callback: injects the schedule's faults into `peers` as the run advances."""
 
     schedule: FaultSchedule
-    peers: dict
+    peers: dict[str, Any]
     fired: list[Fault] = field(default_factory=list)
     _burnt_at: float | None = None
 
@@ -82,6 +105,6 @@ class FaultInjector:
             lamp.world.lamp.replace()           # the operator fits a new lamp
             self._burnt_at = None
 
-    def rebind(self, peers: dict) -> None:
+    def rebind(self, peers: dict[str, Any]) -> None:
         """After a restart (a resume) the faults go on into the new rig's peers."""
         self.peers = peers

@@ -1,12 +1,13 @@
 """Protocol peer of `rig.drivers.modbus_axis`: a simulated two-axis controller on loopback.
 
 A pymodbus 3.16 server (SimDevice) in a background thread with its own event
-loop serves the register map of docs/modbus-axis-register-map.md from
-`AxisModel`s. Its action callback runs before written values are stored: on a
-write that reaches a command register it executes the command from the values
-being written (merged with the stored parameters) and clears the command bits
-in them; on a read it first refreshes the read-only registers from the models,
-so reads see a move in progress on the simulated clock.
+loop serves the register map of docs/modbus-axis-register-map.md (the data in
+`rig.drivers.modbus_axis_map`, shared with the driver) from `AxisModel`s. Its
+action callback runs before written values are stored: on a write that reaches
+a command register it executes the command from the values being written
+(merged with the stored parameters) and clears the command bits in them; on a
+read it first refreshes the read-only registers from the models, so reads see
+a move in progress on the simulated clock.
 
 Faults are injected on demand, per request, optionally only for requests to
 one axis block. They use the server's hooks: `trace_pdu` (a request returned
@@ -19,8 +20,9 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Self
+from typing import Self, cast
 
 from pymodbus import FramerType
 from pymodbus.constants import ExcCodes
@@ -28,7 +30,9 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.base import ModbusBaseServer
 from pymodbus.simulator import DataType, SimData, SimDevice
-from rig.drivers.modbus_axis import (
+
+from rig.config.rigfile import AxisConfig
+from rig.drivers.modbus_axis_map import (
     BLOCK_REGS,
     FIRMWARE,
     MODEL,
@@ -40,15 +44,14 @@ from rig.drivers.modbus_axis import (
     Status,
     axis_base,
     int32_to_regs,
+    register_axis,
     regs_to_int32,
     text_to_regs,
 )
 from rig.simulators.axis_model import AxisModel
+from rig.simulators.faults import AXIS_FAULTS
 from rig.simulators.world import SimWorld
 
-from rig.config.rigfile import AxisConfig
-
-FAULTS = ("no_reply", "exception", "disconnect", "garbled", "alarm")
 IDENTITY = {VENDOR: "rig simulators", MODEL: "SIM-2AX Modbus", FIRMWARE: "1.0.0"}
 
 
@@ -61,8 +64,8 @@ class _Fault:
 
 def _request_axis(pdu: ModbusPDU) -> int:
     """Axis block a request addresses (-1: the identity block)."""
-    address = pdu.write_address if pdu.function_code == 23 else pdu.address
-    return address // 0x0100 - 1
+    address: int = getattr(pdu, "write_address") if pdu.function_code == 23 else pdu.address  # noqa: B009
+    return register_axis(address)
 
 
 class ModbusAxisServer:
@@ -86,53 +89,59 @@ class ModbusAxisServer:
     # -- life cycle ---------------------------------------------------------------------------
     def start(self) -> str:
         """Serve on a free loopback port; returns the driver URL."""
-        if self._thread is not None:
+        if self._thread is not None and self.url is not None:
             return self.url
-        self._loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self._loop.run_forever, name=f"ModbusAxisServer-{id(self):x}",
+        loop = self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=loop.run_forever, name=f"ModbusAxisServer-{id(self):x}",
                                         daemon=True)
         self._thread.start()
         try:
-            port = asyncio.run_coroutine_threadsafe(self._serve(), self._loop).result(timeout=5.0)
+            port = asyncio.run_coroutine_threadsafe(self._serve(), loop).result(timeout=5.0)
         except BaseException:
             self.stop()
             raise
         scheme = "modbus-tcp://" if self.framer == "tcp" else "modbus-rtu://socket://"
-        self.url = f"{scheme}127.0.0.1:{port}"
-        return self.url
+        url = self.url = f"{scheme}127.0.0.1:{port}"
+        return url
 
     def stop(self) -> None:
         """Close the server and its connections, end the loop and join the thread (idempotent)."""
-        if self._thread is None:
+        loop, thread = self._loop, self._thread
+        if loop is None or thread is None:
             return
         if self._server is not None:
-            asyncio.run_coroutine_threadsafe(self._shutdown(), self._loop).result(timeout=5.0)
-        self._loop.call_soon_threadsafe(self._loop.stop)
-        self._thread.join(timeout=5.0)
-        self._loop.close()
+            asyncio.run_coroutine_threadsafe(self._shutdown(self._server), loop).result(timeout=5.0)
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(timeout=5.0)
+        loop.close()
         self._thread = self._loop = self._server = None
 
     def __enter__(self) -> Self:
         self.start()
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.stop()
 
     async def _serve(self) -> int:
         device = SimDevice(self.device_id, simdata=self._simdata(), action=self._on_request)
-        hooks = {"trace_pdu": self._on_pdu, "trace_packet": self._on_packet}
+        # pymodbus drops a request whose trace_pdu hook returns None, though its annotation says ModbusPDU
+        on_pdu = cast(Callable[[bool, ModbusPDU], ModbusPDU], self._on_pdu)
+        server: ModbusBaseServer
         if self.framer == "tcp":
-            server = ModbusTcpServer(device, address=("127.0.0.1", 0), **hooks)
+            server = ModbusTcpServer(device, address=("127.0.0.1", 0), trace_pdu=on_pdu, trace_packet=self._on_packet)
         else:   # pymodbus listens on TCP for a socket:// "serial port" and frames RTU on it
-            server = ModbusSerialServer(device, port="socket://127.0.0.1:0", framer=FramerType.RTU, **hooks)
+            server = ModbusSerialServer(device, port="socket://127.0.0.1:0", framer=FramerType.RTU,
+                                        trace_pdu=on_pdu, trace_packet=self._on_packet)
         await server.serve_forever(background=True)
         self._server = server
-        return server.transport.sockets[0].getsockname()[1]
+        listener = cast(asyncio.Server, server.transport)      # a listening server's transport
+        return int(listener.sockets[0].getsockname()[1])
 
-    async def _shutdown(self) -> None:
-        await self._server.shutdown()
-        if ModbusBaseServer.active_server is self._server:    # pymodbus keeps the last server in a class attribute
+    @staticmethod
+    async def _shutdown(server: ModbusBaseServer) -> None:
+        await server.shutdown()
+        if ModbusBaseServer.active_server is server:    # pymodbus keeps the last server in a class attribute
             ModbusBaseServer.active_server = None
         tasks = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
         for task in tasks:
@@ -143,8 +152,7 @@ class ModbusAxisServer:
     def inject(self, fault: str, count: int = 1, axis: int | None = None) -> None:
         """Make the next `count` requests (to axis block `axis`, or any) fail; "alarm": the next
         `count` moves of `axis` (default 0) end in alarm 0x10 (excessive position deviation)."""
-        if fault not in FAULTS:
-            raise ValueError(f"fault {fault!r}: use one of {', '.join(FAULTS)}")
+        AXIS_FAULTS.check(fault, count)
         if fault == "alarm":
             self.models[axis or 0].inject_alarm(moves=count)
             return
@@ -165,7 +173,7 @@ class ModbusAxisServer:
         if sending:
             return pdu
         fault = self._take_fault(_request_axis(pdu))
-        if fault == "disconnect":
+        if fault == "disconnect" and self._server is not None:
             for connection in list(self._server.active_connections.values()):
                 connection.close()
         if fault in ("no_reply", "disconnect"):
@@ -206,7 +214,7 @@ class ModbusAxisServer:
         return int32_to_regs(status, s.alarm, s.encoder_steps, s.command_steps, lo, hi)
 
     async def _on_request(self, function_code: int, start: int, address: int, count: int, registers: list[int],
-                          values: list[int] | None) -> ExcCodes | None:
+                          values: list[int] | list[bool] | None) -> ExcCodes | None:
         if self._armed == "exception":
             self._armed = None
             return ExcCodes.DEVICE_FAILURE
@@ -219,7 +227,7 @@ class ModbusAxisServer:
             base = axis_base(index)
             if address <= base + Reg.COMMAND + 1 < address + count:     # the command word was written
                 return self._execute(model, registers[base - start:base - start + MOVE_REGS],
-                                     values, address - base)
+                                     cast(list[int], values), address - base)    # holding registers: ints
         return None
 
     def _execute(self, model: AxisModel, stored: list[int], values: list[int], offset: int) -> ExcCodes | None:

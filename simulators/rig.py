@@ -8,18 +8,17 @@ application sees exactly the drivers it would use on hardware.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
+from rig.config.rigfile import RigConfig
+from rig.devices import POSITIONER_AXES, connect_devices
 from rig.drivers.interfaces import RigDevices
+from rig.physics.brdf_models import get_model
 from rig.simulators.camera import SimCamera
 from rig.simulators.delta_sm_peer import DeltaSMPeer
 from rig.simulators.modbus_axis_server import ModbusAxisServer
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
-
-from rig.config.rigfile import RigConfig
-from rig.devices import POSITIONER_AXES, connect_devices
-from rig.physics.brdf_models import get_model
 
 
 class SimulatedRig:
@@ -32,7 +31,7 @@ class SimulatedRig:
         self.config = config
         self.world = SimWorld(config, get_model(brdf_model), brdf_params)
         d = config.devices
-        self.peers = {
+        self.peers: dict[str, ModbusAxisServer | DeltaSMPeer | P9710Peer] = {
             name: ModbusAxisServer(self.world, [(axis, getattr(config.axes, axis)) for axis in axes],
                                    steps_per_degree=getattr(d, name).steps_per_degree,
                                    device_id=getattr(d, name).device_id)
@@ -62,7 +61,7 @@ class SimulatedRig:
         for peer in self.peers.values():
             peer.stop()
 
-    def __enter__(self) -> "SimulatedRig":
+    def __enter__(self) -> SimulatedRig:
         self.start()
         return self
 

@@ -58,7 +58,7 @@ class SensorModel:
 
     @classmethod
     def from_config(cls, camera: CameraConfig, sim: SimulationConfig,
-                    rng: np.random.Generator) -> "SensorModel":
+                    rng: np.random.Generator) -> SensorModel:
         shape = (camera.height_px, camera.width_px)
         gain = np.maximum(1.0 + sim.prnu_rel * rng.standard_normal(shape), 0.0)
         dark = np.maximum(sim.dark_current_e_s + sim.dsnu_e_s * rng.standard_normal(shape), 0.0)

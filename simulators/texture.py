@@ -27,14 +27,14 @@ lattice values: per lattice dimension the standard deviation shrinks by
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from scipy.special import ndtri
 
 from rig.config.rigfile import SimulationConfig
-from rig.physics.optics import dot
+from rig.physics.geometry import dot
 
 _MASK64 = (1 << 64) - 1
 
@@ -48,7 +48,7 @@ def mix64(z: np.ndarray) -> np.ndarray:
 
 def hash_uniform(*nodes: np.ndarray, seed: int) -> np.ndarray:
     """Uniform numbers in the open interval (0, 1), one per integer lattice node (broadcast) and seed."""
-    h = np.uint64(int(mix64(np.array([seed & _MASK64], np.uint64))[0]))
+    h: np.ndarray = np.asarray(mix64(np.array([seed & _MASK64], np.uint64))[0])
     with np.errstate(over="ignore"):
         for n in nodes:
             h = mix64(h ^ np.asarray(n, np.int64).view(np.uint64))
@@ -124,7 +124,7 @@ class ValueNoiseTexture:
     seed: int
 
     @classmethod
-    def from_config(cls, sim: SimulationConfig) -> "ValueNoiseTexture":
+    def from_config(cls, sim: SimulationConfig) -> ValueNoiseTexture:
         return cls(contrast=sim.texture_contrast, grain_m=sim.texture_grain_m, seed=sim.seed)
 
     def lattice(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
@@ -147,7 +147,7 @@ class GlintTexture:
     seed: int
 
     @classmethod
-    def from_config(cls, sim: SimulationConfig) -> "GlintTexture":
+    def from_config(cls, sim: SimulationConfig) -> GlintTexture:
         return cls(contrast=sim.glint_contrast, grain_m=sim.glint_grain_m,
                    angle_rad=math.radians(sim.glint_angle_deg), seed=sim.seed)
 

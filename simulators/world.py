@@ -7,15 +7,16 @@ them. Nothing here knows about protocols.
 
 from __future__ import annotations
 
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
-from rig.simulators.clock import SimClock
-from rig.simulators.lamp import LampPhysics
 
 from rig.config.rigfile import RigConfig
 from rig.physics.brdf_models import BrdfModel
 from rig.physics.geometry import AXIS_NAMES
+from rig.planning.points import as_motors
+from rig.simulators.clock import SimClock
+from rig.simulators.lamp import LampPhysics
 
 
 class SimWorld:
@@ -44,4 +45,4 @@ class SimWorld:
 
     def motor_angles_deg(self) -> tuple[float, float, float, float]:
         """True axis positions (stage_vertical, stage_normal, arm_azimuth, arm_polar)."""
-        return tuple(self.axis_truth[n]() if n in self.axis_truth else 0.0 for n in AXIS_NAMES)
+        return as_motors(self.axis_truth[n]() if n in self.axis_truth else 0.0 for n in AXIS_NAMES)

@@ -12,10 +12,11 @@ from pathlib import Path
 import pytest
 from annotated_types import Ge, Gt, Le, Lt
 from pydantic import BaseModel
-from repo_paths import ROOT
 
+from repo_paths import ROOT
 from rig.config import campaign as campaign_module
-from rig.data.dataset import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS, DatasetWriter
+from rig.data.dataset import DatasetWriter
+from rig.data.dataset_format import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS
 from rig.planning.points import SKIP_REASONS
 
 DOCS = ROOT / "docs"
@@ -142,7 +143,8 @@ def test_campaign_doc_lists_every_key():
     rows = table_rows((DOCS / "campaign.md").read_text(encoding="utf-8"))
     keys = campaign_keys()
     # a section (`capture`, `sample.simulated_brdf`, …) is documented by its keys; a list (`incidence`) by a row too
-    sections = {k for k, f in keys.items() if nested_models(f.annotation) and typing.get_origin(f.annotation) is not list}
+    sections = {k for k, f in keys.items()
+                if nested_models(f.annotation) and typing.get_origin(f.annotation) is not list}
     assert sorted(set(keys) - sections - set(rows)) == []
     assert sorted(set(rows) - set(keys)) == []
 
@@ -165,5 +167,6 @@ def test_campaign_doc_gives_the_defaults_and_bounds_of_the_code():
                    for m in field.metadata if type(m) in BOUND_SIGNS}
         if numeric:
             assert documented_bounds(allowed) == numeric, key
-        for choice in typing.get_args(field.annotation) if typing.get_origin(field.annotation) is typing.Literal else ():
+        literal = typing.get_origin(field.annotation) is typing.Literal
+        for choice in typing.get_args(field.annotation) if literal else ():
             assert f"`{choice}`" in allowed, (key, choice)

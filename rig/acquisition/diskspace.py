@@ -18,7 +18,7 @@ import shutil
 from pathlib import Path
 
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import RESERVE_BYTES, existing_parent, format_bytes
+from rig.data.output_folder import RESERVE_BYTES, existing_parent, format_bytes
 
 ROW_BYTES = 600
 EVENT_BYTES_PER_POINT = 1400

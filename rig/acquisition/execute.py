@@ -6,13 +6,14 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, Sequence
 
 from rig import __version__
 from rig.acquisition.engine import Runner
+from rig.acquisition.outcome import RunEnding, Status, ending_of, record_unstarted
 from rig.config.campaign import Campaign, campaign_sha256
 from rig.config.rigfile import RigConfig
 from rig.core.values import ProgressCallback
@@ -39,7 +40,7 @@ def manifest_for(campaign: Campaign, campaign_path: Path | None, rig: RigConfig)
 
 @dataclass(frozen=True)
 class RunOutcome:
-    status: str                 # complete | interrupted | failed
+    status: Status
     measured: int
     rig_time_s: float
     wall_s: float
@@ -122,7 +123,8 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     rig.session.connect.open_campaign_rig gives the simulated or the real one).
 
     Device and other failures do not raise: they end as status `failed` with the
-    completed points kept; the runner has already made the rig safe.
+    completed points kept; the runner has already made the rig safe. How the run ended is
+    decided by rig.acquisition.outcome.ending_of, as in the runner.
     """
     requests = SignalRequests()
     with stop_on_signals(requests) if handle_signals else nullcontext():
@@ -142,19 +144,12 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
         with devices as opened:
             runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows)
             requests.attach(runner)
-            status = runner.run()
-        error = None
-    except KeyboardInterrupt:    # signals not handled here (handle_signals=False): Python's default Ctrl+C
-        status, error = "interrupted", None
-        if runner is None:       # before the run: nothing was switched on; say how it ended
-            writer.event("interrupted", graceful=False)
-            writer.update_manifest(status="interrupted")
-    except Exception as exc:
-        status, error = "failed", f"{exc}"
-        if runner is None:       # the rig never came up, so no runner recorded the failure
-            writer.event("failed", error=error)
-            writer.update_manifest(status="failed", error=error)
+            ending = RunEnding(runner.run())
+    except (KeyboardInterrupt, Exception) as exc:   # KeyboardInterrupt: handle_signals=False, Python's Ctrl+C
+        ending = ending_of(exc)
+        if runner is None:       # the rig never came up, so no runner recorded how the run ended
+            record_unstarted(writer, ending)
     finally:
         writer.close()
-    return RunOutcome(status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
-                      time.perf_counter() - wall0, out, error)
+    return RunOutcome(ending.status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
+                      time.perf_counter() - wall0, out, ending.message)

@@ -25,15 +25,10 @@ from typing import Any
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import (
-    BRDF_COLUMNS,
-    DatasetWriter,
-    complete_lines,
-    folder_size,
-    numeric_columns,
-    read_brdf_table,
-    utc_now,
-)
+from rig.data.dataset import DatasetWriter, utc_now
+from rig.data.dataset_format import BRDF_COLUMNS
+from rig.data.dataset_reader import complete_lines, numeric_columns, read_brdf_table
+from rig.data.output_folder import folder_size
 from rig.devices import check_devices
 from rig.planning.plan import build_plan
 from rig.planning.points import Plan

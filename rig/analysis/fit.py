@@ -1,4 +1,4 @@
-"""Fit a registry BRDF model to measured data: `fit`, `fit_dataset`, and the `rig fit` subcommand.
+"""Fit a registry BRDF model to measured data: `fit`, `fit_dataset` (the `rig fit` command line: rig/cli/fit.py).
 
 Why it is built this way (Spieringhs et al. 2023 fitted with a genetic algorithm;
 their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
@@ -26,23 +26,18 @@ their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
 from rig.analysis.metrics import goodness_of_fit
-from rig.core.exits import EXIT_BAD_INPUT, EXIT_OK
-from rig.data.dataset import Dataset, DatasetError, load
-from rig.physics.brdf_models import MODELS, BrdfModel, get_model
+from rig.data.dataset_reader import Dataset
+from rig.physics.brdf_models import BrdfModel, get_model
 
 WEIGHTINGS = ("uncertainty", "none")
 LOSSES = ("linear", "soft_l1", "huber")
@@ -83,9 +78,9 @@ class ParamSpace:
             raise ValueError(f"{model.name} has no parameter {', '.join(unknown)}; "
                              f"its parameters: {', '.join(model.param_names)}")
         for name, value in fixed.items():
-            lo, hi = model.bounds[name]
-            if not (math.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"fixed {name} = {value} outside its bounds [{lo}, {hi}]")
+            low, high = model.bounds[name]
+            if not (math.isfinite(value) and low <= value <= high):
+                raise ValueError(f"fixed {name} = {value} outside its bounds [{low}, {high}]")
         free = tuple(p for p in model.param_names if p not in fixed)
         if not free:
             raise ValueError(f"every parameter of {model.name} is fixed: nothing to fit")
@@ -95,8 +90,8 @@ class ParamSpace:
         if not np.all(np.isfinite(lo) & np.isfinite(hi) & (lo < hi) & (~log | (lo > 0))):
             raise ValueError(f"{model.name}: fitting needs finite bounds low < high, low > 0 in log space, "
                              f"for {', '.join(free)}")
-        lo, hi = (np.where(log, np.log10(np.where(log, b, 1.0)), b) for b in (lo, hi))
-        return cls(free, fixed, lo, hi, log)
+        lo_mapped, hi_mapped = (np.where(log, np.log10(np.where(log, b, 1.0)), b) for b in (lo, hi))
+        return cls(free, fixed, lo_mapped, hi_mapped, log)
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """Free parameter values at unit-cube point x."""
@@ -351,117 +346,3 @@ def fit_dataset(dataset: Dataset, model_name: str, *, exclude_flags: tuple[str, 
     wi, wo = dataset.directions()
     return fit(model_name, wi[keep], wo[keep], dataset["brdf_per_sr"][keep],
                dataset["u_brdf_per_sr"][keep], **kwargs)
-
-
-# ---------------------------------------------------------------- command line
-
-def format_report(result: FitResult) -> str:
-    """Parameters ± standard errors, the paper's metrics and the diagnostics, for people."""
-    lines = [f"model {result.model}: {result.n_points} points, weighting {result.weighting}, loss {result.loss}"
-             + (f" (scale {result.f_scale:.3g})" if result.f_scale is not None else "")]
-    for name, value in result.params.items():
-        se = result.stderr[name]
-        note = ("fixed" if name in result.fixed else "± undetermined by the data" if not math.isfinite(se)
-                else f"± {se:.3g}  ({se / abs(value):.2%})" if value else f"± {se:.3g}")
-        lines.append(f"  {name:<8s} {value:12.6g}  {note}" + ("  [at bound]" if name in result.at_bound else ""))
-    m = result.metrics
-    lines.append(f"RMSE {m['rmse']:.4g} sr⁻¹   NRMSE {m['nrmse']:.4g}   NCC {_fmt(m['ncc'], '.4f')}")
-    lines.append(f"converged {'yes' if result.converged else 'NO'} ({result.message}); "
-                 + (f"χ²/dof {result.chi2_dof:.3g}; " if result.chi2_dof is not None else "")
-                 + f"{result.n_starts_at_best}/{result.n_starts} starts reached the best cost; "
-                 f"{result.nfev} model evaluations; {result.wall_s:.2f} s")
-    return "\n".join(lines)
-
-
-def _fmt(v: float, spec: str) -> str:
-    return format(v, spec) if math.isfinite(v) else "—"
-
-
-def format_comparison(results: list[FitResult]) -> str:
-    """Table-6-like: one line per model, best RMSE first."""
-    head = f"{'model':<16s} {'RMSE':>9s} {'NRMSE':>9s} {'NCC':>7s} {'wall s':>7s} {'conv':>4s}  parameters"
-    rows = [head, "-" * len(head)]
-    for r in sorted(results, key=lambda r: r.metrics["rmse"]):
-        m = r.metrics
-        params = ", ".join(f"{k} {v:.3g}" for k, v in r.params.items())
-        rows.append(f"{r.model:<16s} {m['rmse']:9.4g} {m['nrmse']:9.4g} {_fmt(m['ncc'], '7.3f'):>7s} "
-                    f"{r.wall_s:7.2f} {'yes' if r.converged else 'NO':>4s}  {params}")
-    return "\n".join(rows)
-
-
-def _fixed_value(text: str) -> tuple[str, float]:
-    name, _, value = text.partition("=")
-    try:
-        return name.strip(), float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
-
-
-def cmd_fit(args: argparse.Namespace) -> int:
-    def fail(message: str) -> int:
-        print(f"rig: error: {message}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-
-    names = sorted(MODELS) if args.model == "all" else [args.model]
-    if args.model != "all" and args.model not in MODELS:
-        return fail(f"unknown model {args.model!r}; known: {', '.join(sorted(MODELS))}, or all")
-    try:
-        dataset = load(args.dataset)
-    except (DatasetError, OSError) as exc:
-        return fail(str(exc))
-    exclude = UNUSABLE_FLAGS + tuple(args.exclude_flag)
-    fixed = dict(args.fix)
-    unknown = sorted(set(fixed).difference(*(MODELS[name].param_names for name in names)))
-    if unknown:
-        return fail(f"--fix {', '.join(unknown)}: no such parameter in {', '.join(names)}")
-    keep = usable_rows(dataset, exclude)
-    try:
-        weighting, notice = choose_weighting(dataset["u_brdf_per_sr"][keep],
-                                             [pid for pid, k in zip(dataset.point_id, keep) if k], args.weighting)
-    except ValueError as exc:
-        return fail(f"{args.dataset}: {exc}")
-    if notice:
-        print(f"rig fit: {args.dataset}: {notice}", file=sys.stderr)
-    kwargs = {"weighting": weighting, "loss": args.loss, "starts": args.starts, "seed": args.seed,
-              "exclude_flags": exclude}
-    try:
-        results = [fit_dataset(dataset, name, fixed={k: v for k, v in fixed.items()
-                                                     if k in MODELS[name].param_names}, **kwargs)
-                   for name in names]
-    except ValueError as exc:
-        return fail(f"{args.dataset}: {exc}")
-    print(f"rig fit: {dataset.path} ({len(dataset)} rows)")
-    print(format_comparison(results) if args.model == "all" else format_report(results[0]))
-    if args.json:
-        out = ({"dataset": str(dataset.path), "fits": [r.to_json() for r in results]} if args.model == "all"
-               else results[0].to_json())
-        try:
-            Path(args.json).write_text(json.dumps(out, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        except OSError as exc:
-            return fail(f"cannot write {args.json}: {exc.strerror or exc}")
-    return EXIT_OK
-
-
-def add_subcommand(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register `rig fit DATASET --model NAME|all [--json OUT] [--weighted|--unweighted] [--loss L] ...`."""
-    p = subparsers.add_parser("fit", help="fit a BRDF model (or all) to a dataset: parameters ± stderr, "
-                                          "RMSE/NRMSE/NCC (Spieringhs 2023 Eqs. 16, 19, 20)")
-    p.add_argument("dataset", help="dataset folder (contains dataset.json and brdf.csv)")
-    p.add_argument("--model", required=True, help=f"one of {', '.join(sorted(MODELS))}, or all")
-    p.add_argument("--json", metavar="OUT", help="also write the result as JSON")
-    weighting = p.add_mutually_exclusive_group()
-    weighting.add_argument("--weighted", dest="weighting", action="store_const", const="uncertainty",
-                           help="minimise χ² with u_brdf_per_sr; refused unless every row has u (default: "
-                                "weighted when every row has u, unweighted with a notice when none has)")
-    weighting.add_argument("--unweighted", dest="weighting", action="store_const", const="none",
-                           help="minimise the plain squared error (the paper's RMSE), even where u_brdf_per_sr is given")
-    p.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss against outliers (default linear)")
-    p.add_argument("--starts", type=int, default=4, help="local runs after the global stage (default 4)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the global stage (default 0)")
-    p.add_argument("--fix", type=_fixed_value, action="append", default=[], metavar="NAME=VALUE",
-                   help="hold a parameter at a value (repeatable)")
-    p.add_argument("--exclude-flag", action="append", default=[], metavar="FLAG",
-                   help=f"also leave out rows with FLAG, e.g. grazing_incidence "
-                        f"(always left out: {', '.join(UNUSABLE_FLAGS)})")
-    p.set_defaults(func=cmd_fit)
-    return p

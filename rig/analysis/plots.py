@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -30,9 +29,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from rig.core.exits import EXIT_OK, fail
-from rig.data.dataset import Dataset, DatasetError, load, removed_on_failure, require_new_output
+from rig.data.dataset_format import DatasetError
+from rig.data.dataset_reader import Dataset, load
 from rig.data.export import series_incidence_deg
+from rig.data.output_folder import removed_on_failure, require_new_output
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import mirror_direction, sph_to_vec
 
@@ -48,10 +48,8 @@ RETRO_TEXT, SPECULAR_TEXT = "#a0522d", "#2f5f8f"
 Model = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _fit_model(fit: Mapping | None) -> Model | None:
-    """f_fit(ωi, ωo) of a fit record, or None without a fit."""
-    if fit is None:
-        return None
+def _record_model(fit: Mapping) -> Model:
+    """f_fit(ωi, ωo) of a fit record."""
     model, params = get_model(fit["model"]), dict(fit["params"])
     return lambda wi, wo: model(np.broadcast_to(wi, np.shape(wo)), wo, params)
 
@@ -165,10 +163,10 @@ def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -
     pts = f[:, None] * wo[rows]
     wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
     surface = _hemisphere_surface(model, wi) if model else None
-    reach = 1.15 * max(np.max(np.abs(pts)), np.max(np.abs(surface)) if model else 0.0)
+    reach = 1.15 * max(np.max(np.abs(pts)), np.max(np.abs(surface)) if surface is not None else 0.0)
     fig = Figure(figsize=(9, 7.5))
     ax = fig.add_subplot(projection="3d")
-    if model:
+    if surface is not None:
         ax.plot_surface(*np.moveaxis(surface, -1, 0), color=FITTED, alpha=0.18, lw=0.3, edgecolor="#e8a0a0",
                         rstride=3, cstride=3)
         ax.plot([], [], color=FITTED, lw=4, alpha=0.4, label="fit f_fit(ωo)·ωo")
@@ -204,7 +202,7 @@ def _fit_title(fit: Mapping) -> str:
 
 def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
     """Fitted vs measured f_r and relative residuals vs θo, per series."""
-    model = _fit_model(fit)
+    model = _record_model(fit)
     wi, wo = ds.directions()
     f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
     f_fit = model(wi, wo)
@@ -244,12 +242,12 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
     out_dir is created; an existing file or non-empty folder is refused (DatasetError), and a
     failure part-way removes the figures already written.
     """
-    ds = dataset if isinstance(dataset, Dataset) else load(dataset)
+    ds = dataset if isinstance(dataset, Dataset) else load(Path(dataset))
     if len(ds) == 0:
         raise DatasetError(f"{ds.path}: no measured point to plot")
     out_dir = Path(out_dir)
     require_new_output(out_dir, hint="choose another --out")
-    model = _fit_model(fit)
+    model = None if fit is None else _record_model(fit)
     paths = []
     with removed_on_failure(out_dir):
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -274,26 +272,3 @@ def read_fit(path: str | os.PathLike) -> dict:
                          "for `rig fit --model all` output pick one of its 'fits')")
     get_model(fit["model"])
     return fit
-
-
-def cmd_plot(args) -> int:
-
-    try:
-        fit = read_fit(args.fit) if args.fit else None
-        paths = plot_dataset(args.dataset, args.out, fit)
-    except (DatasetError, ValueError, KeyError) as exc:
-        return fail(str(exc).strip('"'))
-    except OSError as exc:
-        return fail(f"{exc.filename}: {exc.strerror}")
-    print(f"{len(paths)} figures in {args.out}", file=sys.stderr)
-    return EXIT_OK
-
-
-def add_subcommand(subparsers) -> None:
-    """Register `rig plot DATASET [--fit FIT.json] --out DIR`."""
-    p = subparsers.add_parser("plot", help="PNG figures: plane of incidence and 3D lobe per incidence, "
-                                           "fit residuals")
-    p.add_argument("dataset", metavar="DATASET", help="dataset folder")
-    p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit --json` to overlay")
-    p.add_argument("--out", required=True, help="new folder for the PNG files (must not exist or be empty)")
-    p.set_defaults(func=cmd_plot)

@@ -11,22 +11,22 @@ from pathlib import Path
 from rig import __version__
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.acquisition.engine import NOMINAL_CAPTURE_S
-from rig.acquisition.execute import execute, manifest_for
+from rig.acquisition.execute import RunOutcome, execute, manifest_for
 from rig.acquisition.progress import ProgressBar, format_duration
 from rig.acquisition.resume import prepare_resume
-from rig.analysis import fit, plots
+from rig.cli import bench, export, fit, import_alta, plot
 from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config
 from rig.core.errors import DeviceError
 from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
-from rig.data import export, importer
-from rig.data.dataset import DatasetError, DatasetWriter, require_new_output
+from rig.data.dataset import DatasetWriter
+from rig.data.dataset_format import DatasetError
+from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
 from rig.drivers.interfaces import RigDevices
 from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
 from rig.planning.points import Plan, describe_reason
-from rig.session import bench
 from rig.session.connect import open_campaign_rig, open_rig
 
 
@@ -42,7 +42,7 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     for s in plan.series:
         print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {measured[s.index]:4d} / "
               f"{planned[s.index]}")
-    moves = estimate_rig_time_s(plan, rig, NOMINAL_CAPTURE_S)
+    moves = estimate_rig_time_s(plan, rig.axes, NOMINAL_CAPTURE_S)
     warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
     print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
           f"(moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point + ≥ {warm:.0f} s lamp warm-up; "
@@ -53,19 +53,20 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
               f"{format_duration(optimised_s)} ({optimised_s / table_s:.2f} × table)")
 
 
-def _rig_config(args) -> RigConfig:
+def _rig_config(args: argparse.Namespace) -> RigConfig:
     """The --rig file, or the built-in simulated rig."""
     return load_rig_config(args.rig) if args.rig else RigConfig()
 
 
-def _load(args) -> tuple[Campaign, RigConfig, Plan]:
+def _load(args: argparse.Namespace) -> tuple[Campaign, RigConfig, Plan]:
+    """Campaign, rig and plan of `rig run` and `rig plan`; ConfigFileError names the file."""
     campaign = load_campaign(args.campaign)
     rig = _rig_config(args)
     check_campaign_for_rig(campaign, rig, args.campaign)
     return campaign, rig, build_plan(campaign, rig)
 
 
-def cmd_plan(args) -> int:
+def cmd_plan(args: argparse.Namespace) -> int:
     try:
         campaign, rig, plan = _load(args)
     except ConfigFileError as exc:
@@ -90,7 +91,7 @@ def print_devices(devices: RigDevices) -> None:
           f"{s.min_exposure_s:g}–{s.max_exposure_s:g} s")
 
 
-def cmd_devices(args) -> int:
+def cmd_devices(args: argparse.Namespace) -> int:
     try:
         rig = load_rig_config(args.rig_file)
         check_devices(rig, args.rig_file)
@@ -105,7 +106,7 @@ def cmd_devices(args) -> int:
     return EXIT_OK
 
 
-def cmd_resume(args) -> int:
+def cmd_resume(args: argparse.Namespace) -> int:
     try:
         r = prepare_resume(args.resume, force=args.force)
     except (ConfigFileError, DatasetError) as exc:
@@ -113,13 +114,14 @@ def cmd_resume(args) -> int:
     left = len(r.plan.points) - len(r.done_rows)
     print(f"rig {__version__}: resuming {r.campaign.name} in {args.resume}: {len(r.done_rows)} points done, "
           f"{left} to measure", file=sys.stderr)
-    outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume), open_campaign_rig(r.campaign, r.rig),
-                      writer=r.writer,
-                      done_rows=r.done_rows, progress=None if args.quiet else ProgressBar(), handle_signals=True)
+    outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume),
+                      open_campaign_rig(r.campaign, r.rig), writer=r.writer, done_rows=r.done_rows,
+                      progress=None if args.quiet else ProgressBar(), handle_signals=True)
     return _report_outcome(outcome, len(r.plan.skipped))
 
 
-def _report_outcome(outcome, n_skipped: int) -> int:
+def _report_outcome(outcome: RunOutcome, n_skipped: int) -> int:
+    """How the run ended, on stderr, and its exit code."""
     if outcome.status == "failed":
         print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {outcome.out}",
               file=sys.stderr)
@@ -143,7 +145,7 @@ def _sim_pace_problem() -> str | None:
     return None
 
 
-def cmd_run(args) -> int:
+def cmd_run(args: argparse.Namespace) -> int:
     if (problem := _sim_pace_problem()) is not None:
         return fail(problem)
     if args.resume:
@@ -200,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
     p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
     p_dev.set_defaults(func=cmd_devices)
-    for module in (fit, importer, export, plots, bench):
+    for module in (fit, import_alta, export, plot, bench):
         module.add_subcommand(sub)
     return parser
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     AfterValidator,
@@ -126,7 +126,7 @@ def _view_kind(v: Any) -> str:
     return "explicit" if isinstance(v, ExplicitViews) else "pattern"
 
 
-ViewSpec = Annotated[Union[Annotated[CentredPattern, Tag("pattern")], Annotated[ExplicitViews, Tag("explicit")]],
+ViewSpec = Annotated[Annotated[CentredPattern, Tag("pattern")] | Annotated[ExplicitViews, Tag("explicit")],
                      Discriminator(_view_kind)]
 
 

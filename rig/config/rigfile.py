@@ -16,8 +16,9 @@ rig.devices.check_devices before connecting.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Callable, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
@@ -224,14 +225,20 @@ def modbus_address_problem(address: str) -> str | None:
     return "expected modbus-tcp://host:port or modbus-rtu://<serial port>?baudrate=N"
 
 
-def _address(check: Callable[[str], str | None]) -> Any:
-    """The type of an address field: `auto` (the simulated rig picks it) or what `check` finds no problem with."""
+def _address_validator(check: Callable[[str], str | None]) -> AfterValidator:
+    """Validation of an address field: `auto` (the simulated rig picks it) or what `check` finds no problem with."""
     def validate(address: str) -> str:
         problem = None if address == "auto" else check(address)
         if problem:
             raise ValueError(problem)
         return address
-    return Annotated[str, StringConstraints(min_length=1, max_length=1000), AfterValidator(validate)]
+    return AfterValidator(validate)
+
+
+ModbusAddress = Annotated[str, StringConstraints(min_length=1, max_length=1000),
+                          _address_validator(modbus_address_problem)]
+SerialAddress = Annotated[str, StringConstraints(min_length=1, max_length=1000),
+                          _address_validator(serial_address_problem)]
 
 
 class PositionerDevice(StrictModel):
@@ -240,7 +247,7 @@ class PositionerDevice(StrictModel):
     driver: Literal["modbus-axis"] = "modbus-axis"
     #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N`;
     #: `auto` on the simulated rig (its peers pick free loopback ports).
-    address: _address(modbus_address_problem) = "auto"
+    address: ModbusAddress = "auto"
     device_id: int = Field(1, ge=0, le=247)
     steps_per_degree: float = Field(1000.0, gt=0, le=1e6)
     timeout_s: Seconds = 1.0
@@ -248,13 +255,13 @@ class PositionerDevice(StrictModel):
 
 class LampDevice(StrictModel):
     driver: Literal["delta-sm"] = "delta-sm"
-    address: _address(serial_address_problem) = "auto"   # e.g. socket://192.168.1.20:8462 or /dev/ttyUSB1
+    address: SerialAddress = "auto"   # e.g. socket://192.168.1.20:8462 or /dev/ttyUSB1
     timeout_s: Seconds = 1.0
 
 
 class MeterDevice(StrictModel):
     driver: Literal["p9710"] = "p9710"
-    address: _address(serial_address_problem) = "auto"   # e.g. /dev/ttyUSB0
+    address: SerialAddress = "auto"   # e.g. /dev/ttyUSB0
     timeout_s: Seconds = 1.0
 
 

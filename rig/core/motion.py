@@ -1,16 +1,30 @@
-"""Trapezoidal motion profile of one axis (pure): used by plan estimates and the simulator."""
+"""Trapezoidal motion profile of one axis (pure): the one model of move time, used by the plan's estimates and
+ordering, the collision check, the engine's timeouts, the Modbus driver and the simulator."""
 
 from __future__ import annotations
 
 import math
+from typing import overload
+
+import numpy as np
+from numpy.typing import ArrayLike
 
 
-def move_time_s(distance_deg: float, speed_deg_s: float, accel_deg_s2: float) -> float:
-    """Duration of a rest-to-rest move with a trapezoidal (or triangular) speed profile."""
-    d = abs(distance_deg)
-    if d * accel_deg_s2 < speed_deg_s ** 2:      # never reaches full speed
-        return 2.0 * math.sqrt(d / accel_deg_s2)
-    return d / speed_deg_s + speed_deg_s / accel_deg_s2
+@overload
+def move_time_s(distance_deg: float, speed_deg_s: float, accel_deg_s2: float) -> float: ...
+@overload
+def move_time_s(distance_deg: np.ndarray, speed_deg_s: ArrayLike, accel_deg_s2: ArrayLike) -> np.ndarray: ...
+def move_time_s(distance_deg: ArrayLike, speed_deg_s: ArrayLike, accel_deg_s2: ArrayLike) -> float | np.ndarray:
+    """Duration of rest-to-rest moves with a trapezoidal (or triangular) speed profile.
+
+    Vectorised: the arguments broadcast (the ordering's cost matrices); scalars give a scalar
+    (a float).
+    """
+    d = np.abs(np.asarray(distance_deg, float))
+    speed, accel = np.asarray(speed_deg_s, float), np.asarray(accel_deg_s2, float)
+    with np.errstate(invalid="ignore"):
+        t = np.where(d * accel < speed ** 2, 2.0 * np.sqrt(d / accel), d / speed + speed / accel)
+    return t if t.ndim else float(t)
 
 
 def position_at(start_deg: float, target_deg: float, elapsed_s: float,

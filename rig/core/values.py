@@ -4,8 +4,8 @@ and how far a run has got. Units: seconds, pixels, DN (digital numbers), lux, am
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -27,10 +27,10 @@ class Window:
     height: int
 
     @classmethod
-    def centred(cls, sensor_width: int, sensor_height: int, width: int, height: int) -> "Window":
+    def centred(cls, sensor_width: int, sensor_height: int, width: int, height: int) -> Window:
         return cls((sensor_width - width) // 2, (sensor_height - height) // 2, width, height)
 
-    def inner(self, other: "Window") -> tuple[slice, slice]:
+    def inner(self, other: Window) -> tuple[slice, slice]:
         """Array slices of `other` (which must lie inside self) in an image of this window."""
         if not (self.x0 <= other.x0 and self.y0 <= other.y0
                 and other.x0 + other.width <= self.x0 + self.width

@@ -185,7 +185,7 @@ def read_alta(path: str | Path) -> AltaData:
                     line=np.array(row_lines, dtype=int))
 
 
-def _number(value: float) -> str:
+def _number(value: float | np.ndarray) -> str:
     """Shortest text that reads back to the same double."""
     return repr(float(value))
 

@@ -30,16 +30,16 @@ from __future__ import annotations
 
 import csv
 import os
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from rig import __version__
-from rig.core.exits import EXIT_OK, fail
 from rig.data.alta import write_alta
-from rig.data.dataset import Dataset, DatasetError, load, removed_on_failure
+from rig.data.dataset_reader import Dataset, load
+from rig.data.output_folder import removed_on_failure
 from rig.physics.geometry import angle_between, sph_to_vec, vec_to_sph, wrap_360, wrap_pi
 
 FORMATS = ("alta", "radiance", "csv", "rl")
@@ -128,7 +128,8 @@ def export_csv(ds: Dataset, out: Path) -> list[Path]:
                                       ds["u_brdf_per_sr"].tolist(), _flags(ds)])
 
 
-def road_quantities(theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg, f, u) -> dict[str, np.ndarray]:
+def road_quantities(theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike, phi_o_deg: ArrayLike,
+                    f: ArrayLike, u: ArrayLike) -> dict[str, np.ndarray]:
     """q, R_L, r with uncertainties, β, tan γ, observation angle (definitions in the module docstring).
 
     β is NaN where an azimuth is undefined.
@@ -157,7 +158,8 @@ RL_COLUMNS = {
 
 
 def export_rl(ds: Dataset, out: Path) -> list[Path]:
-    rq = road_quantities(*(ds[c] for c in ANGLE_COLUMNS), ds["brdf_per_sr"], ds["u_brdf_per_sr"])
+    theta_i, phi_i, theta_o, phi_o = (ds[c] for c in ANGLE_COLUMNS)
+    rq = road_quantities(theta_i, phi_i, theta_o, phi_o, ds["brdf_per_sr"], ds["u_brdf_per_sr"])
     values = [["" if np.isnan(v) else v for v in rq[key].tolist()] for key in RL_COLUMNS]
     return _write_table(out, [*POINT_HEADER, *RL_COLUMNS.values(), "flags"],
                         [*_point_columns(ds), *values, _flags(ds)])
@@ -174,35 +176,10 @@ def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLik
     """
     if fmt not in EXPORTERS:
         raise ValueError(f"unknown export format {fmt!r}; known: {', '.join(FORMATS)}")
-    ds = dataset if isinstance(dataset, Dataset) else load(dataset)
+    ds = dataset if isinstance(dataset, Dataset) else load(Path(dataset))
     out = Path(out)
     _refuse_existing(out)
     if len(ds) == 0:
         raise ExportError(f"{ds.path}: no measured point to export")
     with removed_on_failure(out):
         return EXPORTERS[fmt](ds, out)
-
-
-def cmd_export(args) -> int:
-
-    try:
-        paths = export(args.dataset, args.format, args.out)
-    except (DatasetError, ExportError) as exc:
-        return fail(str(exc))
-    except OSError as exc:
-        return fail(f"{exc.filename}: {exc.strerror}")
-    print(f"exported {args.dataset} as {args.format} → {args.out} ({len(paths)} file{'s' * (len(paths) > 1)})",
-          file=sys.stderr)
-    return EXIT_OK
-
-
-def add_subcommand(subparsers) -> None:
-    """Register `rig export DATASET --format alta|radiance|csv|rl --out PATH`."""
-    p = subparsers.add_parser("export", help="write a dataset as ALTA, Radiance pabopto2bsdf input, CSV or "
-                                             "road-lighting quantities (q, R_L, r)")
-    p.add_argument("dataset", metavar="DATASET", help="dataset folder")
-    p.add_argument("--format", required=True, choices=FORMATS,
-                   help="alta: ALTA text; radiance: folder of pabopto2bsdf files (one per incidence); "
-                        "csv: plain table; rl: q, R_L, r per point")
-    p.add_argument("--out", required=True, help="output file (a new folder for radiance); never overwritten")
-    p.set_defaults(func=cmd_export)

@@ -3,11 +3,26 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import OpenEXR
+
+from rig.core.values import Window
+from rig.physics.geometry import BrdfAngles
+
+
+def point_image_metadata(point_id: str, angles: BrdfAngles, exposures_s: Sequence[float],
+                         roi_window: Window) -> dict[str, Any]:
+    """What a point's image carries besides its pixels: the point, its achieved angles (degrees), the
+    exposures merged (s) and where the ROI is (x0, y0, width, height in pixels), so an image can be
+    matched to its brdf.csv row and its ROI found again without the dataset."""
+    return {"point_id": point_id, "theta_i_deg": float(angles.theta_i_deg), "phi_i_deg": float(angles.phi_i_deg),
+            "theta_o_deg": float(angles.theta_o_deg), "phi_o_deg": float(angles.phi_o_deg),
+            "exposures_s": list(exposures_s),
+            "roi_window": [roi_window.x0, roi_window.y0, roi_window.width, roi_window.height]}
 
 
 def write_luminance_exr(path: str | Path, luminance_cd_m2: np.ndarray, metadata: Mapping[str, Any]) -> None:

@@ -21,31 +21,15 @@ Conventions of an imported dataset (also written into its manifest):
 from __future__ import annotations
 
 import hashlib
-import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from rig import __version__
-from rig.core.exits import EXIT_OK, fail
-from rig.data.alta import (
-    CONVERSION_SKIP_REASONS,
-    CONVERTIBLE_OUT,
-    AltaData,
-    AltaError,
-    RigPoints,
-    read_alta,
-    to_rig,
-)
-from rig.data.dataset import (
-    BRDF_COLUMNS,
-    DatasetError,
-    DatasetWriter,
-    removed_on_failure,
-    require_new_output,
-    utc_now,
-)
+from rig.data.alta import CONVERSION_SKIP_REASONS, AltaData, RigPoints, read_alta, to_rig
+from rig.data.dataset import DatasetWriter, utc_now
+from rig.data.dataset_format import BRDF_COLUMNS
+from rig.data.output_folder import removed_on_failure, require_new_output
 from rig.planning.points import SkippedPoint
 
 MISSING_PARAM_OUT_DEFAULT = "INV_STERADIAN_COSINE_FACTOR"
@@ -158,30 +142,3 @@ def import_alta(path: str | Path, out_dir: str | Path, *, sample_id: str | None 
         finally:
             writer.close()
     return writer.dir
-
-
-def cmd_import(args) -> int:
-
-    try:
-        out = import_alta(args.alta_file, args.out, sample_id=args.sample_id,
-                          assume_param_out=args.assume_param_out)
-    except (AltaError, DatasetError) as exc:
-        return fail(str(exc))
-    except OSError as exc:
-        return fail(f"{exc.filename}: {exc.strerror}")
-    counts = json.loads((out / "dataset.json").read_text(encoding="utf-8"))["counts"]
-    print(f"imported {args.alta_file} → {out}: {counts['measured']} points, {counts['skipped']} skipped "
-          "(reasons in skipped.csv)", file=sys.stderr)
-    return EXIT_OK
-
-
-def add_subcommand(subparsers) -> None:
-    """Register `rig import ALTA_FILE --out DIR [--sample-id ID] [--assume-param-out KIND]`."""
-    p = subparsers.add_parser("import", help="turn a measured ALTA text file into a rig dataset folder")
-    p.add_argument("alta_file", metavar="ALTA_FILE", help="ALTA text file (#PARAM_IN ISOTROPIC_TL_TV_PROJ_DPHI "
-                                                          "or SPHERICAL_TL_PL_TV_PV)")
-    p.add_argument("--out", required=True, help="new dataset folder (must not exist or be empty)")
-    p.add_argument("--sample-id", help="sample id for the manifest (default: the file's #SAMPLE, else its name)")
-    p.add_argument("--assume-param-out", choices=CONVERTIBLE_OUT, default=MISSING_PARAM_OUT_DEFAULT,
-                   help="output kind of a file without #PARAM_OUT (default: %(default)s)")
-    p.set_defaults(func=cmd_import)

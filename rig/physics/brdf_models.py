@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig.physics.geometry import sph_to_vec
+from rig.physics.geometry import dot, sph_to_vec
 
 Evaluate = Callable[..., np.ndarray]
 
@@ -34,10 +34,6 @@ Evaluate = Callable[..., np.ndarray]
 _EPS = 1e-12
 #: β of the azimuth warp of `albedo`: node density (1 + β)/(1 − β) times higher in the plane of incidence.
 _AZIMUTH_CLUSTERING = 0.95
-
-
-def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.sum(u * v, axis=-1)
 
 
 def mirror_about_normal(w: np.ndarray) -> np.ndarray:
@@ -135,7 +131,7 @@ def modified_phong(wi: np.ndarray, wo: np.ndarray, *, kd: float, ks: float, n: f
 
     Reciprocal (i_s·o = i·o_s); albedo ≤ kd + ks, equal at normal incidence (Lewis 1994).
     """
-    return kd / np.pi + ks * phong_lobe(_dot(mirror_about_normal(wi), wo), n)
+    return kd / np.pi + ks * phong_lobe(dot(mirror_about_normal(wi), wo), n)
 
 
 @_hemisphere
@@ -153,8 +149,8 @@ def retrophong(wi: np.ndarray, wo: np.ndarray, *, kd: float, n: float,
     kr = k1 * one_minus_cos + k2
     ks = k3 * np.exp(k4 * one_minus_cos)
     return (kd / np.pi
-            + ks * phong_lobe(_dot(mirror_about_normal(wi), wo), n)
-            + kr * phong_lobe(_dot(wi, wo), n))
+            + ks * phong_lobe(dot(mirror_about_normal(wi), wo), n)
+            + kr * phong_lobe(dot(wi, wo), n))
 
 
 @_hemisphere
@@ -173,7 +169,7 @@ def oren_nayar(wi: np.ndarray, wo: np.ndarray, *, roughness: float, albedo: floa
     a = 1.0 - 0.5 * s2 / (s2 + 0.33)
     b = 0.45 * s2 / (s2 + 0.09)
     ci, co = cos_theta(wi), cos_theta(wo)
-    angular = np.maximum(_dot(wi, wo) - ci * co, 0.0) / np.maximum(np.maximum(ci, co), _EPS)
+    angular = np.maximum(dot(wi, wo) - ci * co, 0.0) / np.maximum(np.maximum(ci, co), _EPS)
     return albedo / np.pi * (a + b * angular)
 
 
@@ -189,9 +185,9 @@ def beckmann_retro(wi: np.ndarray, wo: np.ndarray, *, kd: float, alpha: float, r
     """
     ci, co = cos_theta(wi), cos_theta(wo)
     h, b = half_vector(wi, wo), back_vector(wi, wo)
-    g_over_cosines = cook_torrance_g(ci, co, cos_theta(h), _dot(wi, h)) / (4.0 * np.maximum(ci * co, _EPS))
-    forward = schlick(_dot(wi, h), r0) * beckmann_ndf(cos_theta(h), alpha)
-    retro = schlick(_dot(wi, b), r0) * beckmann_ndf(cos_theta(b), alpha)
+    g_over_cosines = cook_torrance_g(ci, co, cos_theta(h), dot(wi, h)) / (4.0 * np.maximum(ci * co, _EPS))
+    forward = schlick(dot(wi, h), r0) * beckmann_ndf(cos_theta(h), alpha)
+    retro = schlick(dot(wi, b), r0) * beckmann_ndf(cos_theta(b), alpha)
     return kd / np.pi + (forward + retro) * g_over_cosines
 
 
@@ -218,8 +214,8 @@ def abc_retro(wi: np.ndarray, wo: np.ndarray, *, kd: float, r0: float,
     `blinn_retro`. Reciprocal; no energy claim (A is an unnormalised peak value).
     """
     h, b = half_vector(wi, wo), back_vector(wi, wo)
-    forward = schlick(_dot(wi, h), r0) * abc_lobe(cos_theta(h), a_r, b_r, c_r)
-    retro = schlick(_dot(wi, b), r0) * abc_lobe(cos_theta(b), a_b, b_b, c_b)
+    forward = schlick(dot(wi, h), r0) * abc_lobe(cos_theta(h), a_r, b_r, c_r)
+    retro = schlick(dot(wi, b), r0) * abc_lobe(cos_theta(b), a_b, b_b, c_b)
     return kd / np.pi + forward + retro
 
 
@@ -235,7 +231,7 @@ def ggx(wi: np.ndarray, wo: np.ndarray, *, roughness: float, f0: float) -> np.nd
     """
     h = half_vector(wi, wo)
     alpha = roughness ** 2
-    return (schlick(_dot(wi, h), f0) * ggx_ndf(cos_theta(h), alpha)
+    return (schlick(dot(wi, h), f0) * ggx_ndf(cos_theta(h), alpha)
             * ggx_visibility(cos_theta(wi), cos_theta(wo), alpha))
 
 

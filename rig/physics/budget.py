@@ -9,7 +9,8 @@ the combined variance it makes, largest first, so a lab sees what to improve.
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+import math
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -22,6 +23,28 @@ BUDGET_COLUMNS = {
     "u_rel_drift": "lamp drift between E⊥ readings",
     "u_rel_angle": "incidence angle, through tan θi",
 }
+
+
+def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd_m2: float, u_dark_cd_m2: float,
+                 u_texture_cd_m2: float, calibration_u_rel: float, e_perp_lx: float, u_e_perp_lx: float,
+                 u_drift_lx: float, theta_i_deg: float, angle_u_deg: float) -> dict[str, float]:
+    """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
+
+    The camera parts are relative to the luminance, or to its uncertainty where the ROI is
+    (nearly) black, so that an unlit point does not divide by zero. The dark frames' noise is
+    taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift out of u(E⊥),
+    so that each appears once.
+    """
+    lum = max(abs(luminance_cd_m2), u_luminance_cd_m2, 1e-30)
+    return {
+        "u_rel_noise": math.sqrt(max(u_noise_cd_m2 ** 2 - u_dark_cd_m2 ** 2, 0.0)) / lum,
+        "u_rel_dark": u_dark_cd_m2 / lum,
+        "u_rel_texture": u_texture_cd_m2 / lum,
+        "u_rel_calibration": calibration_u_rel,
+        "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2, 0.0)) / e_perp_lx,
+        "u_rel_drift": u_drift_lx / e_perp_lx,
+        "u_rel_angle": math.tan(math.radians(min(theta_i_deg, 89.9999))) * math.radians(angle_u_deg),
+    }
 
 
 def campaign_budget(rows: Sequence[Mapping[str, float]], columns: Mapping[str, str]) -> list[dict]:

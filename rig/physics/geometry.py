@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 TWO_PI = 2.0 * np.pi
 #: Direction toward the lamp in the GCS.
@@ -57,37 +58,41 @@ def _at_pole(v: np.ndarray) -> np.ndarray:
     return rho <= POLE_EPS * np.maximum(np.abs(v[..., 2]), 1.0)
 
 
-def wrap_2pi(angle: np.ndarray) -> np.ndarray:
+def wrap_2pi(angle: ArrayLike) -> np.ndarray:
     """Wrap to [0, 2π), mapping values that round to 2π onto 0."""
     w = np.mod(angle, TWO_PI)
     return np.where(w >= TWO_PI, 0.0, w)
 
 
-def wrap_360(angle_deg: np.ndarray) -> np.ndarray:
+def wrap_360(angle_deg: ArrayLike) -> np.ndarray:
     """Wrap degrees to [0, 360), mapping values that round to 360 onto 0 (never 360.0)."""
     w = np.mod(np.asarray(angle_deg, float), 360.0)
     return np.where(w >= 360.0, 0.0, w)
 
 
-def wrap_pi(angle: np.ndarray) -> np.ndarray:
+def wrap_pi(angle: ArrayLike) -> np.ndarray:
     """Wrap to [-π, π)."""
     return wrap_2pi(np.asarray(angle, float) + np.pi) - np.pi
+
+
+def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Dot products along the last axis, broadcasting the others (einsum: no big temporaries)."""
+    return np.einsum("...i,...i->...", u, v)
 
 
 def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Angle between vectors (..., 3) in radians; accurate near 0 and π (atan2 form)."""
     cross = np.linalg.norm(np.cross(u, v), axis=-1)
-    return np.arctan2(cross, np.sum(u * v, axis=-1))
+    return np.arctan2(cross, dot(u, v))
 
 
-def rotation_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+def rotation_matrix(axis: ArrayLike, angle: ArrayLike) -> np.ndarray:
     """Right-handed rotation(s) about unit `axis` (..., 3) by `angle` (...), Rodrigues."""
-    axis = np.asarray(axis, float)
-    angle = np.asarray(angle, float)
-    axis, _ = np.broadcast_arrays(axis, angle[..., None])
-    angle = np.broadcast_to(angle, axis.shape[:-1])
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    c, s = np.cos(angle), np.sin(angle)
+    turn = np.asarray(angle, float)
+    unit, _ = np.broadcast_arrays(np.asarray(axis, float), turn[..., None])
+    turn = np.broadcast_to(turn, unit.shape[:-1])
+    x, y, z = unit[..., 0], unit[..., 1], unit[..., 2]
+    c, s = np.cos(turn), np.sin(turn)
     t = 1.0 - c
     return np.stack([
         np.stack([c + x * x * t, x * y * t - z * s, x * z * t + y * s], axis=-1),
@@ -96,27 +101,27 @@ def rotation_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     ], axis=-2)
 
 
-def rot_z(angle: np.ndarray) -> np.ndarray:
+def rot_z(angle: ArrayLike) -> np.ndarray:
     return rotation_matrix(np.array([0.0, 0.0, 1.0]), angle)
 
 
-def rot_y(angle: np.ndarray) -> np.ndarray:
+def rot_y(angle: ArrayLike) -> np.ndarray:
     return rotation_matrix(np.array([0.0, 1.0, 0.0]), angle)
 
 
-def sample_frame(alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
+def sample_frame(alpha: ArrayLike, beta: ArrayLike) -> np.ndarray:
     """F = Rz(α)·R_n_home(β)·M0: columns are the sample x, y, n in the GCS (..., 3, 3)."""
     return rot_z(alpha) @ rotation_matrix(N_HOME, beta) @ M0
 
 
-def camera_unit(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def camera_unit(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Unit vector from the origin to the camera, Rz(a)·Ry(b)·(0, 0, 1), in the GCS."""
-    a, b = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
-    sb = np.sin(b)
-    return np.stack([np.cos(a) * sb, np.sin(a) * sb, np.cos(b)], axis=-1)
+    az, polar = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
+    sb = np.sin(polar)
+    return np.stack([np.cos(az) * sb, np.sin(az) * sb, np.cos(polar)], axis=-1)
 
 
-def camera_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def camera_frame(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Rz(a)·Ry(b): columns are the sensor x, sensor y and the camera's backward axis (GCS).
 
     At home the camera sits on +Z looking down, sensor x = GCS X, sensor y = GCS Y.
@@ -124,7 +129,7 @@ def camera_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return rot_z(a) @ rot_y(b)
 
 
-def directions_scs(alpha, beta, a, b) -> tuple[np.ndarray, np.ndarray]:
+def directions_scs(alpha: ArrayLike, beta: ArrayLike, a: ArrayLike, b: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Forward kinematics: (ωi, ωo) as SCS unit vectors for motor angles in radians."""
     frame = sample_frame(alpha, beta)
     frame_t = np.swapaxes(frame, -1, -2)

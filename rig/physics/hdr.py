@@ -10,8 +10,8 @@ variance per pixel that the uncertainty budget can use.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -117,7 +117,7 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
         frame_var = (k_gain * np.maximum(rate_dn_s, 0.0) * t3 + floor_var) / n_frames
         return t3 ** 2 / (frame_var + dark_frame_var)
 
-    clipped = saturated.all(axis=0)
+    clipped = np.asarray(saturated.all(axis=0))
     shortest = np.arange(t.size)[:, None, None] == np.argmin(t)
     usable = ~saturated | (clipped & shortest)       # clipped pixels fall back on the shortest exposure
     rate = np.zeros(rates.shape[1:])

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rig.core.values import Window
-from rig.physics.geometry import LAMP_DIRECTION_GCS, camera_frame, camera_unit, sample_frame
+from rig.physics.geometry import LAMP_DIRECTION_GCS, camera_frame, camera_unit, dot, sample_frame
 
 
 @dataclass(frozen=True)
@@ -39,11 +39,6 @@ class CameraOptics:
     pixel_pitch_m: float
     focal_length_m: float
     distance_m: float
-
-
-def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Dot products along the last axis, broadcasting the others (einsum: no big temporaries)."""
-    return np.einsum("...i,...i->...", u, v)
 
 
 def ray_directions(optics: CameraOptics, frame: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:

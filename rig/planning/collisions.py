@@ -38,7 +38,6 @@ if TYPE_CHECKING:
 SAMPLE_STEP_DEG = 0.1
 
 
-
 def zones_of(rig: RigConfig) -> tuple[ForbiddenZone, ...]:
     """The rig's forbidden zones."""
     return tuple(rig.collisions.zones)
@@ -54,11 +53,13 @@ def zone_at(positions_deg: np.ndarray, zones: Sequence[ForbiddenZone]) -> np.nda
     return names
 
 
-def move_positions(axes: AxesConfig, start_deg: Sequence[float], target_deg: Sequence[float]) -> np.ndarray:
+def move_positions(axes: AxesConfig, start_deg: Sequence[float] | np.ndarray,
+                   target_deg: Sequence[float] | np.ndarray) -> np.ndarray:
     """Positions (m, 4) along a simultaneous move, sampled in time, end points included."""
     cfg = [getattr(axes, n) for n in geo.AXIS_NAMES]
-    duration = max(move_time_s(t - s, c.speed_deg_s, c.accel_deg_s2) for s, t, c in zip(start_deg, target_deg, cfg))
-    fastest = max(c.speed_deg_s for c in cfg)
+    speed = np.array([c.speed_deg_s for c in cfg])
+    duration = float(np.max(move_time_s(np.subtract(target_deg, start_deg), speed, [c.accel_deg_s2 for c in cfg])))
+    fastest = float(np.max(speed))
     times = np.linspace(0.0, duration, max(2, math.ceil(duration * fastest / SAMPLE_STEP_DEG) + 1))
     return np.array([[position_at(s, t, tau, c.speed_deg_s, c.accel_deg_s2)
                       for s, t, c in zip(start_deg, target_deg, cfg)] for tau in times])

@@ -28,14 +28,16 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from rig.config.zones import ForbiddenZone
+from rig.core.motion import move_time_s
 from rig.physics import geometry as geo
-from rig.planning.collisions import zone_at, zones_of
-from rig.planning.points import Plan, PlannedPoint
+from rig.planning.collisions import zone_at
+from rig.planning.points import Plan, PlannedPoint, as_motors
 
 if TYPE_CHECKING:
-    from rig.config.rigfile import AxesConfig, RigConfig
+    from rig.config.rigfile import AxesConfig
 
 #: Where the rig starts a campaign (home).
 START_DEG = (0.0, 0.0, 0.0, 0.0)
@@ -57,15 +59,7 @@ def axis_parameters(axes: AxesConfig) -> tuple[np.ndarray, np.ndarray, np.ndarra
             np.array([c.settle_s for c in cfg]))
 
 
-def trapezoid_time_s(distance_deg: np.ndarray, speed_deg_s: np.ndarray, accel_deg_s2: np.ndarray) -> np.ndarray:
-    """`rig.core.motion.move_time_s`, vectorised: rest-to-rest duration of trapezoidal moves."""
-    d = np.abs(distance_deg)
-    with np.errstate(invalid="ignore"):
-        return np.where(d * accel_deg_s2 < speed_deg_s ** 2, 2.0 * np.sqrt(d / accel_deg_s2),
-                        d / speed_deg_s + speed_deg_s / accel_deg_s2)
-
-
-def travel_time_s(axes: AxesConfig, start_deg: np.ndarray, target_deg: np.ndarray) -> np.ndarray:
+def travel_time_s(axes: AxesConfig, start_deg: ArrayLike, target_deg: ArrayLike) -> np.ndarray:
     """Duration of moves between positions (..., 4) that broadcast; NaN where a position is NaN.
 
     An axis that does not move adds nothing (no settling either). Axis by axis,
@@ -75,7 +69,7 @@ def travel_time_s(axes: AxesConfig, start_deg: np.ndarray, target_deg: np.ndarra
     out = np.zeros(np.broadcast_shapes(start.shape, target.shape)[:-1])
     for k, (speed, accel, settle) in enumerate(zip(*axis_parameters(axes))):
         d = target[..., k] - start[..., k]
-        out = np.maximum(out, np.where(d != 0, trapezoid_time_s(d, speed, accel) + settle, 0.0))
+        out = np.maximum(out, np.where(d != 0, move_time_s(d, speed, accel) + settle, 0.0))
     return out
 
 
@@ -251,15 +245,15 @@ def order_series(axes: AxesConfig, start_deg: np.ndarray, stage_deg: np.ndarray)
     return blocked_path(from_start, cost, stage_deg / speed[:2])                 # the stage, in seconds of travel
 
 
-def order_plan(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG,
-               switch_branches: bool = True) -> Plan:
+def order_plan(plan: Plan, axes: AxesConfig, zones: Sequence[ForbiddenZone] = (),
+               start: Sequence[float] = START_DEG, switch_branches: bool = True) -> Plan:
     """The plan with series and points reordered for least rig time; ids and angles unchanged.
 
     With `switch_branches` a point may move to its other arm branch when that is
     inside the limits and outside every forbidden zone. Empty series go last, in
     their given order.
     """
-    axes, limits, zones = rig.axes, rig.axes.limits(), zones_of(rig)
+    limits = axes.limits()
     by_series: dict[int, list[PlannedPoint]] = {s.index: [] for s in plan.series}
     for p in plan.points:                       # one pass: the plan may hold thousands of series
         by_series[p.series].append(p)
@@ -274,7 +268,7 @@ def order_plan(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG,
         candidates = arm_branches(motors, limits, zones) if switch_branches else motors[:, None, :]
         order, branch = order_views(axes, here, candidates)
         chosen = candidates[order, branch]
-        points += [replace(pts[k], motors_deg=tuple(float(x) for x in m)) for k, m in zip(order, chosen)]
+        points += [replace(pts[k], motors_deg=as_motors(m)) for k, m in zip(order, chosen)]
         here = chosen[-1]
     empty = [s for s in plan.series if not by_series[s.index]]
     return replace(plan, series=tuple(series + empty), points=tuple(points))

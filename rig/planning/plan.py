@@ -21,13 +21,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from rig.config.campaign import Campaign, CentredPattern
-from rig.config.rigfile import RigConfig, camera_optics
+from rig.config.rigfile import AxesConfig, RigConfig, camera_optics
 from rig.config.zones import ForbiddenZone
 from rig.physics import geometry as geo
 from rig.physics.optics import roi_inside_spot
 from rig.planning.collisions import path_crosses, zone_at, zones_of
-from rig.planning.ordering import START_DEG, arm_branches, order_plan, path_time_s, travel_time_s
-from rig.planning.points import Plan, PlannedPoint, Series, SkippedPoint
+from rig.planning.ordering import START_DEG, arm_branches, order_plan, path_time_s
+from rig.planning.points import Motors, Plan, PlannedPoint, Series, SkippedPoint, as_motors
 
 #: Directions closer than this (radians) are the same planned direction.
 SAME_DIRECTION_RAD = 1e-9
@@ -93,14 +93,14 @@ def build_plan(campaign: Campaign, rig: RigConfig, ordering: Ordering | None = N
     ordering = ordering or getattr(campaign, "ordering", "optimised")
     if ordering not in ("optimised", "table"):
         raise ValueError(f"ordering must be 'optimised' or 'table', got {ordering!r}")
-    return _in_order(_table_plan(campaign, rig), rig, ordering)
+    return _in_order(_table_plan(campaign, rig), rig.axes, zones_of(rig), ordering)
 
 
-def _in_order(plan: Plan, rig: RigConfig, ordering: Ordering) -> Plan:
+def _in_order(plan: Plan, axes: AxesConfig, zones: Sequence[ForbiddenZone], ordering: Ordering) -> Plan:
     """The table plan in `ordering`, with the moves that would cross a forbidden zone checked."""
     if ordering == "optimised":
-        plan = order_plan(plan, rig, START_DEG)
-    return drop_colliding_moves(plan, rig, START_DEG)
+        plan = order_plan(plan, axes, zones, START_DEG)
+    return drop_colliding_moves(plan, axes, zones, START_DEG)
 
 
 def _table_plan(campaign: Campaign, rig: RigConfig) -> Plan:
@@ -108,7 +108,8 @@ def _table_plan(campaign: Campaign, rig: RigConfig) -> Plan:
     limits = rig.axes.limits()
     zones = zones_of(rig)
     optics = camera_optics(rig)
-    occlusion_rad = np.arctan2(rig.geometry.lamp_housing_radius_m, rig.geometry.lamp_distance_m)
+    geometry = rig.geometry
+    occlusion_rad = np.arctan2(geometry.lamp_housing_radius_m, geometry.lamp_distance_m)
     max_view_rad = np.radians(campaign.limits.max_view_theta_deg)
     current = START_DEG
     series_list = incidence_series(campaign)
@@ -134,7 +135,7 @@ def _table_plan(campaign: Campaign, rig: RigConfig) -> Plan:
             if ok.any():
                 m = np.radians(motors[ok])
                 lit[ok] = roi_inside_spot(m[:, 0], m[:, 1], m[:, 2], m[:, 3], campaign.capture.roi_px,
-                                          optics, rig.geometry.spot_diameter_m / 2)
+                                          optics, geometry.spot_diameter_m / 2)
             _mark(reason, ~lit, "roi_unlit")
 
         for k in range(len(wo)):
@@ -143,7 +144,7 @@ def _table_plan(campaign: Campaign, rig: RigConfig) -> Plan:
             if reason[k]:
                 skipped.append(SkippedPoint(pid, series.index, *angles, reason[k]))
             else:
-                points.append(PlannedPoint(pid, series.index, *angles, tuple(float(x) for x in motors[k])))
+                points.append(PlannedPoint(pid, series.index, *angles, as_motors(motors[k])))
         if np.any(reason == ""):                # the next series' inverse kinematics starts at its last point
             current = points[-1].motors_deg
     return Plan(tuple(series_list), tuple(points), tuple(skipped))
@@ -167,28 +168,29 @@ def _outside_zones(motors: np.ndarray, limits: geo.AxisLimits,
     return np.where(move[:, None], first, motors), np.where(move, "", zone)
 
 
-def _other_branches(motors: tuple[float, ...], limits: geo.AxisLimits,
-                    zones: Sequence[ForbiddenZone]) -> list[tuple[float, ...]]:
+def _other_branches(motors: Motors, limits: geo.AxisLimits, zones: Sequence[ForbiddenZone]) -> list[Motors]:
     """The position's twins on the other arm branch that are inside the limits and outside every zone."""
     twins = arm_branches(np.array([motors]), limits, zones)[0, 1:]
-    return [tuple(float(x) for x in m) for m in twins if np.all(np.isfinite(m))]
+    return [as_motors(m) for m in twins if np.all(np.isfinite(m))]
 
 
-def drop_colliding_moves(plan: Plan, rig: RigConfig, start: Sequence[float] = START_DEG) -> Plan:
+def drop_colliding_moves(plan: Plan, axes: AxesConfig, zones: Sequence[ForbiddenZone],
+                         start: Sequence[float] = START_DEG) -> Plan:
     """Check every move in plan order; a move across a forbidden zone goes to the point's other arm
     branch if that one's move is clear, else the point is left out (reason `collision:<zone>`).
 
     The next move then starts from the last point kept.
     """
-    zones = zones_of(rig)
     if not zones:
         return plan
-    limits = rig.axes.limits()
-    here, kept, dropped = tuple(start), [], []
+    limits = axes.limits()
+    here: Sequence[float] = tuple(start)
+    kept: list[PlannedPoint] = []
+    dropped: list[SkippedPoint] = []
     for p in plan.points:
-        zone = path_crosses(here, p.motors_deg, zones, rig.axes)
+        zone = path_crosses(here, p.motors_deg, zones, axes)
         clear = p.motors_deg if zone is None else next(
-            (m for m in _other_branches(p.motors_deg, limits, zones) if path_crosses(here, m, zones, rig.axes) is None),
+            (m for m in _other_branches(p.motors_deg, limits, zones) if path_crosses(here, m, zones, axes) is None),
             None)
         if clear is None:
             dropped.append(SkippedPoint(p.point_id, p.series, p.theta_i_deg, p.phi_i_deg, p.theta_o_deg,
@@ -199,16 +201,11 @@ def drop_colliding_moves(plan: Plan, rig: RigConfig, start: Sequence[float] = ST
     return replace(plan, points=tuple(kept), skipped=plan.skipped + tuple(dropped))
 
 
-def move_time_s(rig: RigConfig, start_deg: tuple[float, ...], target_deg: tuple[float, ...]) -> float:
-    """All four axes start together; the slowest one (plus its settling) sets the time."""
-    return float(travel_time_s(rig.axes, start_deg, target_deg))
-
-
-def estimate_rig_time_s(plan: Plan, rig: RigConfig, capture_s_per_point: float,
-                        start_deg: tuple[float, ...] = START_DEG) -> float:
+def estimate_rig_time_s(plan: Plan, axes: AxesConfig, capture_s_per_point: float,
+                        start_deg: Sequence[float] = START_DEG) -> float:
     """Rig time of the measured points in plan order: moves plus a nominal capture time each."""
     motors = np.array([p.motors_deg for p in plan.points], float).reshape(-1, 4)
-    return path_time_s(rig.axes, start_deg, motors) + capture_s_per_point * len(plan.points)
+    return path_time_s(axes, start_deg, motors) + capture_s_per_point * len(plan.points)
 
 
 def rig_time_comparison(campaign: Campaign, rig: RigConfig, capture_s_per_point: float = 0.0) -> tuple[float, float]:
@@ -218,6 +215,7 @@ def rig_time_comparison(campaign: Campaign, rig: RigConfig, capture_s_per_point:
     Both are `build_plan`'s plans; the points and motors are worked out once for the two.
     """
     plan = _table_plan(campaign, rig)
-    table, optimised = (_in_order(plan, rig, o) for o in ("table", "optimised"))
-    return (estimate_rig_time_s(table, rig, capture_s_per_point),
-            estimate_rig_time_s(optimised, rig, capture_s_per_point))
+    zones = zones_of(rig)
+    table, optimised = (_in_order(plan, rig.axes, zones, o) for o in ("table", "optimised"))
+    return (estimate_rig_time_s(table, rig.axes, capture_s_per_point),
+            estimate_rig_time_s(optimised, rig.axes, capture_s_per_point))

@@ -7,7 +7,11 @@ it, the engine measures it and the dataset records its skipped points.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass
+
+#: The four motor angles of a position, degrees: stage_vertical, stage_normal, arm_azimuth, arm_polar.
+Motors = tuple[float, float, float, float]
 
 SKIP_REASONS = {
     "below_horizon": "viewing direction at or below the sample plane (θo ≥ 90°)",
@@ -18,6 +22,13 @@ SKIP_REASONS = {
     "forbidden_zone": "the axes would stand inside a forbidden zone of the rig (on every arm branch)",
     "collision": "the move to it from the previous point kept would cross a forbidden zone of the rig",
 }
+
+
+def as_motors(values: Iterable[float]) -> Motors:
+    """Four motor angles (a row of an array) as plain floats."""
+    a, b, c, d = (float(x) for x in values)
+    return a, b, c, d
+
 
 def describe_reason(reason: str) -> str:
     """Text of a skip reason; `forbidden_zone:<zone>` and `collision:<zone>` name the zone."""
@@ -46,7 +57,7 @@ class PointAngles:
 
 @dataclass(frozen=True)
 class PlannedPoint(PointAngles):
-    motors_deg: tuple[float, float, float, float]   # stage_vertical, stage_normal, arm_azimuth, arm_polar
+    motors_deg: Motors
 
 
 @dataclass(frozen=True)

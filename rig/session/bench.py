@@ -1,4 +1,4 @@
-"""`rig bench error-vs-time`: BRDF error against rig time for several capture settings.
+"""BRDF error against rig time for several capture settings.
 
 Runs one campaign on the simulated rig once per capture setting (the same plan,
 the same simulated sample) and compares each dataset with the simulated truth
@@ -11,27 +11,23 @@ compared with, as ratios.
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import platform
 import tempfile
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from rig.acquisition.execute import execute
-from rig.config.campaign import Campaign, load_campaign
-from rig.config.files import ConfigFileError
+from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
-from rig.core.exits import fail
-from rig.data.dataset import load
+from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
-DEFAULT_CAMPAIGN = Path(__file__).resolve().parents[1] / "campaigns" / "spieringhs2023-rm1.yaml"
 BASELINE = "fixed bracket 5×1 stop"
 SETTINGS: dict[str, dict[str, Any]] = {
     BASELINE: {"mode": "fixed_bracket"},
@@ -57,7 +53,9 @@ def dataset_errors(folder: Path) -> dict[str, float]:
 
 
 def run_settings(campaign: Campaign, campaign_path: Path, settings: Mapping[str, Mapping[str, Any]],
-                 rig: RigConfig = RigConfig()) -> list[dict]:
+                 rig: RigConfig | None = None) -> list[dict]:
+    """Run the campaign once per capture setting (default: on the built-in simulated rig); a row per setting."""
+    rig = rig or RigConfig()
     plan = build_plan(campaign, rig)
     results = []
     for label, overrides in settings.items():
@@ -128,29 +126,3 @@ def plot(results: Sequence[dict], out_png: Path, title: str) -> None:
     fig.tight_layout()
     fig.savefig(out_png)
     plt.close(fig)
-
-
-def cmd_error_vs_time(args) -> int:
-    path = Path(args.campaign)
-    try:
-        campaign = load_campaign(path)
-    except ConfigFileError as exc:
-        return fail(str(exc))
-    results = run_settings(campaign, path, SETTINGS)
-    print(format_table(results, path.name))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    plot(results, out / "error-vs-time.png", f"{campaign.name}: error against capture time")
-    (out / "error-vs-time.json").write_text(json.dumps({"machine": machine(), "campaign": str(path),
-                                                        "results": results}, indent=2))
-    print(f"plot and figures in {out}")
-    return 0
-
-
-def add_subcommand(subparsers: argparse._SubParsersAction) -> None:
-    bench = subparsers.add_parser("bench", help="benchmarks on the simulated rig")
-    which = bench.add_subparsers(dest="bench", required=True)
-    evt = which.add_parser("error-vs-time", help="BRDF error against rig time for several capture settings")
-    evt.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN))
-    evt.add_argument("--out", default="runs/bench-error-vs-time", help="folder for the PNG and JSON")
-    evt.set_defaults(func=cmd_error_vs_time)

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import AbstractContextManager, contextmanager
-from typing import Iterator, Mapping
 
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
@@ -19,20 +19,20 @@ NEUTRAL_SAMPLE = ("lambert", {"kd": 0.5})
 def open_rig(config: RigConfig, brdf_model: str | None = None,
              brdf_params: Mapping[str, float] | None = None) -> Iterator[RigDevices]:
     """Connected devices for the duration of the block; everything is closed afterwards."""
+    close: Callable[[], None]
     if config.simulated:
-        from rig.simulators.rig import (
-            SimulatedRig,  # only the simulated rig needs the simulators
-        )
+        from rig.simulators.rig import SimulatedRig  # only the simulated rig needs the simulators
 
-        model, params = (brdf_model, brdf_params) if brdf_model else NEUTRAL_SAMPLE
-        with SimulatedRig(config, model, params) as sim:
-            yield sim.devices
-        return
-    devices = connect_devices(config, WallClock())
+        model, params = (brdf_model, brdf_params) if brdf_model and brdf_params is not None else NEUTRAL_SAMPLE
+        sim = SimulatedRig(config, model, params)
+        devices, close = sim.start(), sim.stop
+    else:
+        devices = connect_devices(config, WallClock())
+        close = devices.close
     try:
         yield devices
     finally:
-        devices.close()
+        close()
 
 
 def open_campaign_rig(campaign: Campaign, config: RigConfig) -> AbstractContextManager[RigDevices]:

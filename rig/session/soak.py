@@ -11,10 +11,12 @@ import numpy as np
 
 from rig.acquisition.engine import Runner
 from rig.acquisition.execute import execute, manifest_for
+from rig.acquisition.outcome import RunEnding, ending_of
 from rig.acquisition.resume import prepare_resume
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import DatasetWriter, load
+from rig.data.dataset import DatasetWriter
+from rig.data.dataset_reader import load
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 from rig.simulators.faults import FaultInjector, FaultSchedule
@@ -32,19 +34,26 @@ def run_with_faults(campaign: Campaign, campaign_path: Path, rig: RigConfig, out
                     schedule: FaultSchedule, max_restarts: int = 5) -> SoakResult:
     plan = build_plan(campaign, rig)
     truth = campaign.sample.simulated_brdf
+    if truth is None:
+        raise ValueError(f"campaign {campaign.name!r}: a soak run needs the sample's simulated_brdf")
     writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
     writer.write_skipped(plan.skipped)
     injector = FaultInjector(schedule, {})
     done_rows: list[dict] = []
     attempts: list[tuple[str, str | None]] = []
     while True:
-        with SimulatedRig(rig, truth.model, truth.params) as sim:
+        sim = SimulatedRig(rig, truth.model, truth.params)
+        devices = sim.start()           # stopped below, as `with SimulatedRig(...)` would
+        try:
             injector.rebind(sim.peers)
-            runner = Runner(campaign, plan, sim.devices, writer, rig, progress=injector, done_rows=done_rows)
+            runner = Runner(campaign, plan, devices, writer, rig, progress=injector, done_rows=done_rows)
             try:
-                attempts.append((runner.run(), None))
+                ending = RunEnding(runner.run())
             except Exception as exc:      # a persistent fault: the runner already made the rig safe
-                attempts.append(("failed", str(exc)))
+                ending = ending_of(exc)
+            attempts.append((ending.status, ending.message))
+        finally:
+            sim.stop()
         writer.close()
         if attempts[-1][0] == "complete" or len(attempts) > max_restarts:
             break
@@ -58,7 +67,8 @@ def run_with_faults(campaign: Campaign, campaign_path: Path, rig: RigConfig, out
 
 
 def run_fault_free(campaign: Campaign, campaign_path: Path, rig: RigConfig, out: Path) -> str:
-    return execute(campaign, campaign_path, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig)).status
+    plan = build_plan(campaign, rig)
+    return execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig)).status
 
 
 @dataclass(frozen=True)

@@ -5,13 +5,13 @@ import pytest
 from hypothesis import given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
-from rig.drivers.interfaces import LuminanceCamera
 
 from rig.acquisition.capture import DarkFrameCache, capture_point, fixed_bracket, frames_for_snr
 from rig.config.capture import CaptureSettings
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, SensorInfo, Window
+from rig.drivers.interfaces import LuminanceCamera
 from rig.physics.hdr import saturation_threshold_dn
 from rig.physics.roi import block_means
 

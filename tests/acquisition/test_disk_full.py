@@ -19,17 +19,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from repo_paths import ROOT
-from rig_process import pending_points, start_rig, wait_until
 
+from repo_paths import ROOT
 from rig.acquisition import diskspace
 from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.data import dataset as ds_module
-from rig.data.dataset import DatasetWriter, DiskFullError, load
+from rig.data.dataset import DatasetWriter, DiskFullError
+from rig.data.dataset_reader import load
 from rig.data.images import write_luminance_exr
 from rig.planning.plan import build_plan
+from rig_process import pending_points, start_rig, wait_until
 
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
 PAPER = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"

@@ -6,7 +6,6 @@ import io
 import re
 
 import pytest
-from rig.simulators.rig import SimulatedRig
 
 from rig.acquisition.engine import Runner
 from rig.acquisition.progress import ProgressBar
@@ -15,6 +14,7 @@ from rig.config.rigfile import RigConfig
 from rig.core.values import Progress
 from rig.data.dataset import DatasetWriter
 from rig.planning.plan import build_plan
+from rig.simulators.rig import SimulatedRig
 
 
 def test_rig_time_eta_at_ten_percent_is_within_30_percent_of_the_remaining_rig_time(tmp_path):

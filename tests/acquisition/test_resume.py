@@ -15,12 +15,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from repo_paths import E2E_CAMPAIGN as CAMPAIGN
-from rig_process import pending_points, start_rig, wait_until
 
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.planning.plan import build_plan
+from rig_process import pending_points, start_rig, wait_until
 
 
 def signal_after(proc, folder: Path, n_points: int, sig: int) -> None:
@@ -38,7 +38,7 @@ def manifest(folder: Path) -> dict:
 
 
 def events(folder: Path) -> list[dict]:
-    return [json.loads(l) for l in (folder / "events.jsonl").read_text().splitlines()]
+    return [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
 
 
 @pytest.fixture(scope="module")

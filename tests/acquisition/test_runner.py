@@ -10,9 +10,8 @@ import json
 import numpy as np
 import pytest
 import yaml
-from repo_paths import ROOT
-from rig.simulators.rig import SimulatedRig
 
+from repo_paths import ROOT
 from rig.acquisition.engine import Runner
 from rig.acquisition.execute import manifest_for
 from rig.cli.main import main
@@ -22,6 +21,7 @@ from rig.core.errors import DeviceError
 from rig.data.dataset import DatasetWriter
 from rig.data.images import read_luminance_exr
 from rig.planning.plan import build_plan
+from rig.simulators.rig import SimulatedRig
 
 
 def small_campaign(**extra):
@@ -81,7 +81,7 @@ def rows(folder):
 
 
 def events(folder):
-    return [json.loads(l) for l in (folder / "events.jsonl").read_text().splitlines()]
+    return [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
 
 
 def at_point(n, action):
@@ -309,7 +309,7 @@ def test_manifest_carries_campaign_and_truth(tmp_path):
 
 
 def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
-    from rig.acquisition.engine import CollisionError
+    from rig.acquisition.moves import CollisionError
     from rig.config.zones import CollisionsConfig, ForbiddenZone
     zone = ForbiddenZone(name="lamp_lever", description="test", arm_azimuth=(40.0, 50.0), arm_polar=(-10.0, 10.0))
     rig_cfg = RigConfig(collisions=CollisionsConfig(zones=[zone]))
@@ -318,9 +318,9 @@ def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
     with SimulatedRig(rig_cfg, "lambert", {"kd": 0.5}) as sim:
         runner = Runner(campaign, build_plan(campaign, rig_cfg), sim.devices, writer, rig_cfg)
         with pytest.raises(CollisionError, match="forbidden zone 'lamp_lever'"):
-            runner._move((0.0, 0.0, 90.0, 0.0))          # the arm would sweep through the lever
+            runner.mover.move((0.0, 0.0, 90.0, 0.0))     # the arm would sweep through the lever
         assert all(abs(ax.position_deg()) < 0.01 for ax in sim.devices.arm.axes)    # nothing moved
-        runner._move((0.0, 0.0, 90.0, 30.0))             # a path beside it is fine... if it stays clear
+        runner.mover.move((0.0, 0.0, 90.0, 30.0))        # a path beside it is fine... if it stays clear
     writer.close()
 
 

@@ -15,28 +15,29 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import pytest
 import yaml
-from repo_paths import ROOT
-from rig.drivers.interfaces import RigDevices
-from rig.drivers.wallclock import WallClock
-from rig.simulators.clock import SimClock
-from rig.simulators.rig import SimulatedRig
-from rig_process import events_text, start_rig, wait_until
 
+from repo_paths import ROOT
 from rig.acquisition.engine import Runner
 from rig.acquisition.execute import execute
+from rig.acquisition.suspenders import IlluminanceJump
 from rig.config.campaign import Campaign, parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
 from rig.core.values import Progress
 from rig.data.dataset import DatasetWriter
+from rig.drivers.interfaces import RigDevices
+from rig.drivers.wallclock import WallClock
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
+from rig.simulators.clock import SimClock
+from rig.simulators.rig import SimulatedRig
+from rig_process import events_text, start_rig, wait_until
 
 CAMPAIGN = ROOT / "tests" / "campaigns" / "e2e-reduced.yaml"
 #: Wall seconds per rig second of the paced runs: a 300 s warm-up lasts 0.6 s.
@@ -237,7 +238,7 @@ def test_a_drift_limit_below_the_meter_noise_fails_after_a_bounded_number_of_ret
     assert "suspenders.illuminance_drift_limit_rel = 1e-07" in message and "raise the limit" in message
     discards = [e for e in end.events() if e["event"] == "points_discarded"]
     first = discards[0]["point_ids"][0]
-    assert sum(first in e["point_ids"] for e in discards) == Runner.MAX_RETAKES + 1
+    assert sum(first in e["point_ids"] for e in discards) == IlluminanceJump.max_retakes + 1
     assert not end.lamp_on and not end.moving
     m = end.manifest()
     assert m["status"] == "failed" and "illuminance_drift_limit_rel" in m["error"]
@@ -278,7 +279,8 @@ def test_signals_landing_in_the_exit_path_cannot_cut_it_short(tmp_path, monkeypa
             os.kill(os.getpid(), signal.SIGINT)
     c, rig = campaign(), RigConfig()
     handler = signal.getsignal(signal.SIGINT)
-    outcome = execute(c, None, rig, build_plan(c, rig), tmp_path / "ds", open_campaign_rig(c, rig), progress=first_ctrl_c, handle_signals=True)
+    outcome = execute(c, None, rig, build_plan(c, rig), tmp_path / "ds", open_campaign_rig(c, rig),
+                      progress=first_ctrl_c, handle_signals=True)
     assert signal.getsignal(signal.SIGINT) is handler               # restored afterwards
     assert outcome.status == "interrupted" and lamp_was_on == [True, False]
     folder = tmp_path / "ds"

@@ -17,14 +17,14 @@ import pytest
 from rig.analysis.fit import (
     UNUSABLE_FLAGS,
     ParamSpace,
-    add_subcommand,
     fit,
     fit_dataset,
     usable_rows,
 )
+from rig.cli.fit import add_subcommand
 from rig.cli.main import main
 from rig.config.campaign import load_campaign
-from rig.data.dataset import load
+from rig.data.dataset_reader import load
 from rig.physics import geometry as geo
 from rig.physics.brdf_models import MODELS
 

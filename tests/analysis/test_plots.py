@@ -7,20 +7,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.image import imread
-from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 
 from rig.analysis import plots
-from rig.cli.main import main
-from rig.data.dataset import load
+from rig.cli import plot
 
 FIT_RGB = np.array([0xD6, 0x27, 0x28]) / 255          # plots.FITTED
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sim") / "ds"
-    assert main(["run", str(CAMPAIGN), "--out", str(out), "--quiet"]) == 0
-    return load(out)
+def dataset(e2e_dataset):
+    return e2e_dataset
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +80,7 @@ def test_plane_offsets():
 
 def test_cli_plot(dataset, truth_fit, tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="rig")
-    plots.add_subcommand(parser.add_subparsers(dest="command", required=True))
+    plot.add_subcommand(parser.add_subparsers(dest="command", required=True))
     fit_file = tmp_path / "fit.json"
     fit_file.write_text(json.dumps({**truth_fit, "stderr": {}}))
     out = tmp_path / "figs"

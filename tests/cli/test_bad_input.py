@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-from repo_paths import ROOT
 
+from repo_paths import ROOT
 from rig.cli.main import main
 
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())

@@ -10,11 +10,8 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
-from repo_paths import E2E_CAMPAIGN
 
-from rig.cli.main import main
-from rig.data.dataset import BRDF_COLUMNS
+from rig.data.dataset_format import BRDF_COLUMNS
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import forward_deg, sph_to_vec
 
@@ -28,23 +25,15 @@ def column(rows, name):
     return np.array([float(r[name]) for r in rows])
 
 
-@pytest.fixture(scope="module")
-def reduced_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("e2e") / "ds"
-    campaign = E2E_CAMPAIGN
-    assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
-    return out
-
-
-def test_dataset_files_and_manifest(reduced_run):
-    manifest = json.loads((reduced_run / "dataset.json").read_text())
+def test_dataset_files_and_manifest(e2e_run):
+    manifest = json.loads((e2e_run / "dataset.json").read_text())
     assert manifest["status"] == "complete"
     assert manifest["format"] == "rig-brdf-dataset"
     assert manifest["simulated_brdf"]["model"] == "retrophong"
     assert len(manifest["campaign"]["sha256"]) == 64
     counts = manifest["counts"]
-    rows = read_rows(reduced_run)
-    with open(reduced_run / "skipped.csv", newline="") as fh:
+    rows = read_rows(e2e_run)
+    with open(e2e_run / "skipped.csv", newline="") as fh:
         skipped = list(csv.DictReader(fh))
     assert counts["measured"] == len(rows) > 60
     assert counts["planned"] == len(rows) + len(skipped)
@@ -52,15 +41,15 @@ def test_dataset_files_and_manifest(reduced_run):
     ids = [r["point_id"] for r in rows] + [s["point_id"] for s in skipped]
     assert len(set(ids)) == len(ids)
     assert list(rows[0])[:len(BRDF_COLUMNS)] == list(BRDF_COLUMNS)
-    assert not (reduced_run / "images").exists()
-    events = [json.loads(l)["event"] for l in (reduced_run / "events.jsonl").read_text().splitlines()]
+    assert not (e2e_run / "images").exists()
+    events = [json.loads(line)["event"] for line in (e2e_run / "events.jsonl").read_text().splitlines()]
     assert events[0] == "devices" and "warmup_stable" in events and events[-1] == "safe_state"
     assert events.count("illuminance") == 5 + 1          # one per series and a closing reading
     assert events.count("point_pending") == len(rows)     # each point written ahead of its E⊥ bracket
 
 
-def test_achieved_angles_come_from_read_back_motors(reduced_run):
-    rows = read_rows(reduced_run)
+def test_achieved_angles_come_from_read_back_motors(e2e_run):
+    rows = read_rows(e2e_run)
     fk = forward_deg(*(column(rows, c) for c in ("stage_vertical_deg", "stage_normal_deg",
                                                  "arm_azimuth_deg", "arm_polar_deg")),
                      phi_i_at_pole_deg=column(rows, "phi_i_deg"), phi_o_at_pole_deg=column(rows, "phi_o_deg"))
@@ -72,9 +61,9 @@ def test_achieved_angles_come_from_read_back_motors(reduced_run):
     assert np.max(np.abs(err)) < 0.05 and np.any(err != 0)
 
 
-def test_brdf_matches_truth_within_reported_uncertainty(reduced_run):
-    rows = read_rows(reduced_run)
-    truth_spec = json.loads((reduced_run / "dataset.json").read_text())["simulated_brdf"]
+def test_brdf_matches_truth_within_reported_uncertainty(e2e_run):
+    rows = read_rows(e2e_run)
+    truth_spec = json.loads((e2e_run / "dataset.json").read_text())["simulated_brdf"]
     wi = sph_to_vec(np.radians(column(rows, "theta_i_deg")), np.radians(column(rows, "phi_i_deg")))
     wo = sph_to_vec(np.radians(column(rows, "theta_o_deg")), np.radians(column(rows, "phi_o_deg")))
     truth = get_model(truth_spec["model"])(wi, wo, truth_spec["params"])
@@ -92,8 +81,8 @@ def test_brdf_matches_truth_within_reported_uncertainty(reduced_run):
     assert f.max() > 3 * 0.62 / np.pi
 
 
-def test_illuminance_and_rows_consistent(reduced_run):
-    rows = read_rows(reduced_run)
+def test_illuminance_and_rows_consistent(e2e_run):
+    rows = read_rows(e2e_run)
     e_perp, e = column(rows, "illuminance_normal_lx"), column(rows, "illuminance_lx")
     np.testing.assert_allclose(e, e_perp * np.cos(np.radians(column(rows, "theta_i_deg"))), rtol=1e-9)
     np.testing.assert_allclose(column(rows, "brdf_per_sr"), column(rows, "luminance_cd_m2") / e, rtol=1e-9)
@@ -111,13 +100,13 @@ def test_cli_entry_point_and_plan(tmp_path, test_campaigns_dir):
     assert "estimated rig time" in proc.stdout
 
 
-def test_budget_components_add_up_to_the_combined_uncertainty(reduced_run):
-    rows = read_rows(reduced_run)
+def test_budget_components_add_up_to_the_combined_uncertainty(e2e_run):
+    rows = read_rows(e2e_run)
     components = ["u_rel_noise", "u_rel_dark", "u_rel_texture", "u_rel_calibration", "u_rel_illuminance",
                   "u_rel_drift", "u_rel_angle"]
     rss = np.sqrt(sum(column(rows, c) ** 2 for c in components))
     np.testing.assert_allclose(rss, column(rows, "u_brdf_per_sr") / column(rows, "brdf_per_sr"), rtol=0.02)
-    budget = json.loads((reduced_run / "dataset.json").read_text())["uncertainty_budget"]
+    budget = json.loads((e2e_run / "dataset.json").read_text())["uncertainty_budget"]
     assert [b["component"] for b in budget] != [] and {b["component"] for b in budget} == set(components)
     shares = [b["median_share_of_variance"] for b in budget]
     assert shares == sorted(shares, reverse=True)          # largest contributors first

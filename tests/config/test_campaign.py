@@ -3,8 +3,8 @@
 
 import pytest
 import yaml
-from repo_paths import ROOT
 
+from repo_paths import ROOT
 from rig.config.campaign import CampaignError, load_campaign, parse_campaign
 
 GOOD = yaml.safe_load((ROOT / "campaigns" / "quick.yaml").read_text())
@@ -55,7 +55,7 @@ def test_bad_campaign_names_key_value_and_rule(data, key, value, rule):
         parse_campaign(data, "bad.yaml")
     msg = str(err.value)
     assert msg.startswith("bad.yaml: invalid campaign")
-    line = next(l for l in msg.splitlines() if f"'{key}'" in l)
+    line = next(text for text in msg.splitlines() if f"'{key}'" in text)
     if value is not None:
         assert f"value {value}" in line
     assert rule in line

@@ -121,7 +121,7 @@ def test_every_valid_campaign_plans_and_captures(data):
     settings_ = campaign.capture.settings()
     assert isinstance(settings_, CaptureSettings) and settings_.full_frame == campaign.capture.save_images
     plan = build_plan(campaign, RIG)
-    rig_time = estimate_rig_time_s(plan, RIG, 0.05)
+    rig_time = estimate_rig_time_s(plan, RIG.axes, 0.05)
     assert math.isfinite(rig_time) and rig_time >= 0
 
 

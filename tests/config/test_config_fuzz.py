@@ -18,9 +18,9 @@ from typing import Any
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from repo_paths import ROOT
 from test_campaign_property import field_strategy
 
+from repo_paths import ROOT
 from rig.cli.main import main
 from rig.config.campaign import Capture
 

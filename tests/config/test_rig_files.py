@@ -3,13 +3,13 @@
 
 import pytest
 import yaml
-from repo_paths import E2E_CAMPAIGN, RIGS
-from rig.simulators.clock import SimClock
 
+from repo_paths import E2E_CAMPAIGN, RIGS
 from rig.cli.main import main
 from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
 from rig.core.errors import DeviceError
 from rig.devices import connect_devices, vendor_camera
+from rig.simulators.clock import SimClock
 
 
 def test_simulated_rig_file_is_the_default():
@@ -38,7 +38,7 @@ def test_bad_rig_file(tmp_path, change, key, rule):
     f.write_text(yaml.safe_dump(change))
     with pytest.raises(RigConfigError) as err:
         load_rig_config(f)
-    line = next(l for l in str(err.value).splitlines() if f"'{key}'" in l)
+    line = next(text for text in str(err.value).splitlines() if f"'{key}'" in text)
     assert rule in line
 
 
@@ -119,7 +119,8 @@ def test_good_positioner_addresses_load(tmp_path, address):
 
 @pytest.mark.parametrize("text, key", [
     ("axes: {arm_polar: {limits_deg: [-180, 180], speed_deg_s: .inf, accel_deg_s2: 30}}", "axes.arm_polar.speed_deg_s"),
-    ("axes: {arm_polar: {limits_deg: [-.inf, .inf], speed_deg_s: 15, accel_deg_s2: 30}}", "axes.arm_polar.limits_deg[0]"),
+    ("axes: {arm_polar: {limits_deg: [-.inf, .inf], speed_deg_s: 15, accel_deg_s2: 30}}",
+     "axes.arm_polar.limits_deg[0]"),
     ("axes: {arm_polar: {limits_deg: [-180, 1e6], speed_deg_s: 15, accel_deg_s2: 30}}", "axes.arm_polar.limits_deg[1]"),
     ("meter: {repeatability_rel: .nan}", "meter.repeatability_rel"),
     ("camera: {min_exposure_s: 20, max_exposure_s: 15}", "camera"),

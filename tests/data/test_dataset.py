@@ -6,7 +6,8 @@ import os
 
 import pytest
 
-from rig.data.dataset import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError, DatasetWriter
+from rig.data.dataset import DatasetWriter
+from rig.data.dataset_format import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError
 from rig.planning.points import SkippedPoint
 
 CONTRACT_COLUMNS = [
@@ -42,7 +43,7 @@ def test_rows_are_on_disk_before_close(tmp_path):
     assert float(rows[0]["brdf_per_sr"]) == 0.123456789012345      # full precision
     assert rows[0]["exposures_s"] == "0.01;0.0025"
     assert rows[1]["flags"] == "retried;low_signal"
-    events = [json.loads(l) for l in (tmp_path / "ds" / "events.jsonl").read_text().splitlines()]
+    events = [json.loads(line) for line in (tmp_path / "ds" / "events.jsonl").read_text().splitlines()]
     assert events[0]["event"] == "retry" and events[0]["point_id"] == "00-001"
     w.close()
 

@@ -6,20 +6,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 
-from rig.cli.main import main
+from rig.cli import export as export_cli
 from rig.data import export as ex
 from rig.data.alta import read_alta
-from rig.data.dataset import load
+from rig.data.dataset_reader import load
 from rig.data.importer import import_alta
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sim") / "ds"
-    assert main(["run", str(CAMPAIGN), "--out", str(out), "--quiet"]) == 0
-    return load(out)
+def dataset(e2e_dataset):
+    return e2e_dataset
 
 
 def _angles(ds):
@@ -128,7 +125,7 @@ def test_refuses_to_overwrite_and_unknown_format(dataset, tmp_path):
 
 def test_cli_export(dataset, tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="rig")
-    ex.add_subcommand(parser.add_subparsers(dest="command", required=True))
+    export_cli.add_subcommand(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["export", str(dataset.path), "--format", "radiance", "--out", str(tmp_path / "r")])
     assert args.func(args) == 0 and "5 files" in capsys.readouterr().err
     assert args.func(args) == 2 and "already exists" in capsys.readouterr().err

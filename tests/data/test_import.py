@@ -7,9 +7,10 @@ import hashlib
 import numpy as np
 import pytest
 
+from rig.cli import import_alta
 from rig.data import importer
 from rig.data.alta import write_alta
-from rig.data.dataset import load
+from rig.data.dataset_reader import load
 from rig.physics.geometry import angle_between, mirror_direction
 
 #: The vendored CEA tapes (tests/data/cea-retro, the `cea_dir` fixture) by short name.
@@ -74,7 +75,8 @@ def test_provenance_in_the_manifest(imported, cea_dir):
         assert m["rig"]["simulated"] is False
         assert prov["source_file"] == str(path.resolve())
         assert prov["source_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
-        assert prov["header"]["PARAM_IN"] == "ISOTROPIC_TL_TV_PROJ_DPHI" and prov["param_in"] == prov["header"]["PARAM_IN"]
+        assert (prov["header"]["PARAM_IN"] == "ISOTROPIC_TL_TV_PROJ_DPHI"
+                and prov["param_in"] == prov["header"]["PARAM_IN"])
         assert prov["param_out_used"] == "INV_STERADIAN_COSINE_FACTOR"
         assert prov["conversion"] and prov["conventions"]["point_id"]
     assert imported["yellow"].manifest["provenance"]["param_out"] == "INV_STERADIAN_COSINE_FACTOR"
@@ -102,7 +104,7 @@ def test_uncertainty_from_vs_and_spherical_angles(tmp_path):
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rig")
-    importer.add_subcommand(parser.add_subparsers(dest="command", required=True))
+    import_alta.add_subcommand(parser.add_subparsers(dest="command", required=True))
     return parser
 
 

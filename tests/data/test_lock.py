@@ -16,14 +16,15 @@ import sys
 from pathlib import Path
 
 import pytest
-from repo_paths import E2E_CAMPAIGN as CAMPAIGN
-from rig_process import events_text, pending_points, start_rig, wait_until
 
+from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import DatasetError, DatasetWriter
+from rig.data.dataset import DatasetWriter
+from rig.data.dataset_format import DatasetError
 from rig.data.folderlock import LOCK_NAME, FolderLock, FolderLockedError
 from rig.planning.plan import build_plan
+from rig_process import events_text, pending_points, start_rig, wait_until
 
 
 def lock_holder(folder: Path) -> str:

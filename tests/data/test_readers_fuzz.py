@@ -23,7 +23,8 @@ from hypothesis import strategies as st
 from rig.acquisition import diskspace
 from rig.cli.main import main
 from rig.data.alta import write_alta
-from rig.data.dataset import DatasetError, load
+from rig.data.dataset_format import DatasetError
+from rig.data.dataset_reader import load
 from rig.data.folderlock import LOCK_NAME
 
 TINY = {

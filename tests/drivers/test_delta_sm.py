@@ -1,26 +1,18 @@
-"""Delta SM lamp-supply driver: exact byte exchanges, the protocol peer, and every fault.
+"""Delta SM lamp-supply driver: the exact byte exchanges, replayed in memory.
 
-pyserial's `socket://` close sleeps 0.3 s of wall time, so the peer tests
-share one peer and one connected driver (reset before each test) and the
-fault tests wait at most a 0.2 s timeout per lost reply.
+The driver against the protocol peer over loopback TCP, and every fault, is in
+test_delta_sm_integration.py.
 """
 
-import threading
-from itertools import pairwise
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
-from rig.drivers.delta_sm import DeltaSM
-from rig.drivers.retry import RetryPolicy
-from rig.simulators.clock import SimClock
-from rig.simulators.delta_sm_peer import DeltaSMPeer, TcpLinePeer
-from rig.simulators.world import SimWorld
 
-from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
-from rig.physics.brdf_models import get_model
+from rig.drivers.delta_sm import DeltaSM
+from rig.simulators.clock import SimClock
 
-FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
-ATTEMPTS = 2
 CONNECT = [("*IDN?", "DELTA ELEKTRONIKA BV,SM15-100,1234,P0198"),
            ("*CLS", None), ("SYSTem:ERRor?", "0,None"),
            ("SYSTem:REMote:CV REMote", None), ("SYSTem:ERRor?", "0,None"),
@@ -32,34 +24,14 @@ CLOSE = [("SYSTem:REMote:CV LOCal", None), ("SYSTem:ERRor?", "0,None"),
          ("SYSTem:REMote:CC LOCal", None), ("SYSTem:ERRor?", "0,None")]
 
 
-@pytest.fixture(scope="module", autouse=True)
-def no_leaked_threads():
-    before = set(threading.enumerate())
-    yield
-    assert set(threading.enumerate()) <= before
+def wire(exchanges: list[tuple[str, str | None]]) -> list[tuple[bytes, bytes | None]]:
+    """SCPI lines as they go on the wire: ASCII, LF-terminated both ways; settings get no reply."""
+    return [(line.encode("ascii") + b"\n", None if reply is None else reply.encode("ascii") + b"\n")
+            for line, reply in exchanges]
 
 
-def lines(exchanges: list[tuple]) -> list[str]:
+def lines(exchanges: list[tuple]) -> list[bytes]:
     return [line for line, _ in exchanges]
-
-
-# -- exact exchanges against a scripted peer ---------------------------------------------------
-class ScriptedPeer(TcpLinePeer):
-    """Records every line with the rig time it arrived and answers from a script of (line, reply)."""
-
-    def __init__(self, clock: SimClock, script: list[tuple[str, str | None]]):
-        super().__init__()
-        self.clock = clock
-        self.script = script
-        self.received: list[tuple[str, float]] = []
-
-    def respond(self, line: bytes) -> bytes | None:
-        text = line.decode("ascii")
-        self.received.append((text, self.clock.now()))
-        step = len(self.received) - 1
-        if step < len(self.script) and self.script[step][0] == text and self.script[step][1] is not None:
-            return self.script[step][1].encode("ascii") + b"\n"
-        return None
 
 
 @pytest.fixture
@@ -68,269 +40,75 @@ def clock() -> SimClock:
 
 
 @pytest.fixture
-def scripted(clock):
-    """`scripted(exchanges)`: a connected driver and a peer expecting connect, `exchanges`, close."""
-    peers = []
-
-    def start(exchanges: list[tuple[str, str | None]], **kw) -> tuple[DeltaSM, ScriptedPeer]:
-        peer = ScriptedPeer(clock, CONNECT + exchanges + CLOSE)
-        peers.append(peer)
-        return DeltaSM(peer.start(), clock=clock, timeout_s=FAST, **kw), peer
-
-    yield start
-    for peer in peers:
-        peer.stop()
+def scripted(expected_protocol, clock):
+    """`with scripted(exchanges, **driver options) as (lamp, replay)`: a driver connected over a replay
+    of connect, `exchanges`, close (the test closes the driver)."""
+    @contextmanager
+    def start(exchanges: list[tuple[str, str | None]], **kw) -> Iterator[tuple]:
+        script = wire(CONNECT + exchanges + CLOSE)
+        with expected_protocol(script, now=clock.now) as replay:
+            yield DeltaSM("socket://lamp:8462", clock=clock, timeout_s=0.2, open_port=replay.open_port, **kw), replay
+        assert lines(replay.written) == lines(script)
+    return start
 
 
 def test_connect_output_measurements_and_close(scripted, clock):
-    lamp, peer = scripted([("SOURce:CURrent 4.17", None), ("SYSTem:ERRor?", "0,None"),
-                           ("OUTPut ON", None), ("SYSTem:ERRor?", "0,None"),
-                           ("OUTPut?", "1"),
-                           ("MEASure:VOLtage?", "11.9987"), ("MEASure:CURrent?", "4.1700"),
-                           ("OUTPut OFF", None), ("SYSTem:ERRor?", "0,None"), ("OUTPut?", "0")])
-    assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-100,1234,P0198"
-    lamp.set_current(4.17)                 # no ramp: one step, no read of the present setpoint
-    lamp.set_output(True)
-    assert lamp.output_is_on() is True
-    assert lamp.measure_voltage_v() == 11.9987
-    assert lamp.measure_current_a() == 4.17
-    lamp.set_output(False)
-    lamp.close()                           # hands both setpoints back to the front panel
-    assert lines(peer.received) == lines(peer.script)
+    with scripted([("SOURce:CURrent 4.17", None), ("SYSTem:ERRor?", "0,None"),
+                   ("OUTPut ON", None), ("SYSTem:ERRor?", "0,None"),
+                   ("OUTPut?", "1"),
+                   ("MEASure:VOLtage?", "11.9987"), ("MEASure:CURrent?", "4.1700"),
+                   ("OUTPut OFF", None), ("SYSTem:ERRor?", "0,None"), ("OUTPut?", "0")]) as (lamp, _):
+        assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-100,1234,P0198"
+        lamp.set_current(4.17)                 # no ramp: one step, no read of the present setpoint
+        lamp.set_output(True)
+        assert lamp.output_is_on() is True
+        assert lamp.measure_voltage_v() == 11.9987
+        assert lamp.measure_current_a() == 4.17
+        lamp.set_output(False)
+        lamp.close()                           # hands both setpoints back to the front panel
     assert clock.now() == 0.0
 
 
-def test_configured_compliance_replaces_the_maximum(clock):
-    script = CONNECT[:8] + [("SOURce:VOLtage 13.5", None), ("SYSTem:ERRor?", "0,None")] + CLOSE
-    with ScriptedPeer(clock, script) as peer:
-        DeltaSM(peer.url, clock=clock, timeout_s=FAST, compliance_v=13.5).close()
-    assert lines(peer.received) == lines(script)
+def test_configured_compliance_replaces_the_maximum(expected_protocol, clock):
+    script = wire(CONNECT[:8] + [("SOURce:VOLtage 13.5", None), ("SYSTem:ERRor?", "0,None")] + CLOSE)
+    with expected_protocol(script) as replay:
+        DeltaSM("socket://lamp:8462", clock=clock, timeout_s=0.2, compliance_v=13.5,
+                open_port=replay.open_port).close()
+    assert lines(replay.written) == lines(script)
 
 
 def test_current_is_ramped_in_steps_on_the_clock_with_an_error_read_after_each(scripted):
     steps = [("SOURce:CURrent?", "1.0000")]        # the ramp starts from the supply's present setpoint
     for value in ("1.5", "2", "2.5", "3"):
         steps += [(f"SOURce:CURrent {value}", None), ("SYSTem:ERRor?", "0,None")]
-    lamp, peer = scripted(steps, ramp_step_s=0.1)
-    lamp.set_current(3.0, ramp_s=0.4)
-    lamp.close()
-    assert lines(peer.received) == lines(peer.script)
-    assert [t for line, t in peer.received if line.startswith("SOURce:CURrent ")] == \
+    with scripted(steps, ramp_step_s=0.1) as (lamp, replay):
+        lamp.set_current(3.0, ramp_s=0.4)
+        lamp.close()
+    assert [t for line, t in replay.written if line.startswith(b"SOURce:CURrent ")] == \
         pytest.approx([0.1, 0.2, 0.3, 0.4])
 
 
 def test_a_refused_setting_drains_the_queue_and_names_command_and_entries(scripted):
-    lamp, peer = scripted([("SOURce:CURrent 4.17", None), ("SYSTem:ERRor?", "-221,Settings conflict"),
-                           ("SYSTem:ERRor?", "-300,Device-specific error"), ("SYSTem:ERRor?", "0,None")])
-    with pytest.raises(DeviceError) as err:
-        lamp.set_current(4.17)
-    assert not err.value.transient
-    assert str(err.value) == ("lamp: 'SOURce:CURrent 4.17' refused: -221,Settings conflict; "
-                              "-300,Device-specific error")
-    lamp.close()
-    assert lines(peer.received) == lines(peer.script)
+    with scripted([("SOURce:CURrent 4.17", None), ("SYSTem:ERRor?", "-221,Settings conflict"),
+                   ("SYSTem:ERRor?", "-300,Device-specific error"), ("SYSTem:ERRor?", "0,None")]) as (lamp, _):
+        with pytest.raises(DeviceError) as err:
+            lamp.set_current(4.17)
+        assert not err.value.transient
+        assert str(err.value) == ("lamp: 'SOURce:CURrent 4.17' refused: -221,Settings conflict; "
+                                  "-300,Device-specific error")
+        lamp.close()
 
 
-# -- against the protocol peer over loopback TCP -----------------------------------------------
-@pytest.fixture(scope="module")
-def world() -> SimWorld:
-    return SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5})
-
-
-@pytest.fixture(scope="module")
-def peer(world):
-    with DeltaSMPeer(world) as peer:
-        yield peer
-
-
-@pytest.fixture(scope="module")
-def shared_lamp(peer, world):
-    lamp = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, retry=RetryPolicy(attempts=ATTEMPTS))
-    yield lamp
-    lamp.close()
-
-
-@pytest.fixture
-def events() -> list[tuple[str, dict]]:
-    return []
-
-
-def ask(peer: DeltaSMPeer, *lines: str) -> list[str | None]:
-    return [peer.answer(line.encode("ascii")) for line in lines]
-
-
-@pytest.fixture
-def lamp(shared_lamp, peer, world, events):
-    """The shared driver on a supply reset to its state after connect, with a new, cold lamp."""
-    ask(peer, "*RST", "*CLS", "SYST:REM:CV REM", "SYST:REM:CC REM", f"SOUR:VOLT {peer.max_voltage_v}")
-    world.lamp.replace()
-    shared_lamp.events = lambda kind, **fields: events.append((kind, fields))
-    return shared_lamp
-
-
-def test_peer_identity_remote_hand_over_and_close(lamp, peer, world):
-    assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-10,SIM0001,sim-1.0"
-    ask(peer, "SYST:REM:CV LOC", "SYST:REM:CC LOC", "SOUR:VOLT 0")
-    second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST)
-    assert peer.remote == {"CV": True, "CC": True}
-    assert peer.voltage_v == peer.max_voltage_v            # the current setpoint rules
-    second.set_output(True)
-    second.close()
-    assert peer.remote == {"CV": False, "CC": False}       # front panel again...
-    assert peer.output_on                                  # ...and the output left as it was
-
-
-def test_constant_current_ramp_has_no_overshoot_and_warms_the_filament(lamp, world, monkeypatch):
-    setpoints = []
-    program = world.lamp.set_current
-    monkeypatch.setattr(world.lamp, "set_current",
-                        lambda i, ramp_s=0.0: (setpoints.append((world.clock.now(), i)), program(i, ramp_s)))
-    lamp.set_current(0.0)
-    lamp.set_output(True)
-    t0 = world.clock.now()
-    lamp.set_current(4.17, ramp_s=5.0)
-    assert world.clock.now() - t0 == pytest.approx(5.0)
-    times, currents = zip(*setpoints[1:])
-    assert len(currents) == 50 and currents[-1] == pytest.approx(4.17, abs=1e-12)
-    assert max(currents) == pytest.approx(4.17, abs=1e-12)                  # no overshoot
-    assert all(b >= a for a, b in pairwise(currents))
-    assert [t - t0 for t in times] == pytest.approx([0.1 * k for k in range(1, 51)])
-    world.clock.sleep(2.0)
-    current, voltage = lamp.measure_current_a(), lamp.measure_voltage_v()
-    assert current == pytest.approx(4.17, abs=1e-12)
-    assert voltage == pytest.approx(12.0, abs=1e-4)        # hot filament: rated voltage at nominal current
-    assert voltage / current == pytest.approx(world.lamp.resistance_ohm(), abs=1e-4)
-
-
-def test_output_on_off_and_measurements_follow_the_filament(lamp, world):
-    lamp.set_current(4.17)
-    assert lamp.output_is_on() is False
-    assert (lamp.measure_current_a(), lamp.measure_voltage_v()) == (0.0, 0.0)
-    lamp.set_output(True)                                  # switching on cold at full current: inrush
-    assert lamp.output_is_on() is True
-    assert lamp.measure_voltage_v() == pytest.approx(4.17 * world.lamp.cold_resistance_ohm, abs=1e-4)
-    world.clock.sleep(0.15)
-    assert 1.3 < lamp.measure_voltage_v() < 12.0           # heating up: the voltage transient
-    lamp.set_output(False)
-    assert lamp.output_is_on() is False and world.lamp.relative_output() == 0.0
-
-
-@pytest.mark.parametrize("fault", ["no_reply", "garbled", "short", "disconnect"])
-def test_transient_fault_is_retried_after_a_reconnect(lamp, peer, events, fault):
-    lamp.set_current(4.17)
-    lamp.set_output(True)
-    peer.inject(fault)
-    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
+def test_a_garbled_reply_is_retried_after_a_reconnect_with_the_same_request(expected_protocol, clock):
+    garbled = bytes(b | 0x80 for b in b"4.1700") + b"\n"
+    script = (wire(CONNECT) + [(b"MEASure:CURrent?\n", garbled), (b"MEASure:CURrent?\n", b"4.1700\n")]
+              + wire(CLOSE))
+    events = []
+    with expected_protocol(script) as replay:
+        lamp = DeltaSM("socket://lamp:8462", clock=clock, timeout_s=0.2, open_port=replay.open_port)
+        lamp.events = lambda kind, **fields: events.append((kind, fields))
+        assert lamp.measure_current_a() == 4.17
+        lamp.close()
     assert [kind for kind, _ in events] == ["retry", "reconnect"]
-    assert events[0][1]["what"] == "MEASure:CURrent?"
-
-
-@pytest.mark.parametrize("fault, answer", [("no_reply", "got b'')"), ("garbled", "garbled reply"),
-                                           ("short", "got b'4.1')"), ("disconnect", "connection lost")])
-def test_persistent_fault_names_device_command_and_answer(lamp, peer, fault, answer):
-    lamp.set_current(4.17)
-    lamp.set_output(True)
-    peer.inject(fault, count=ATTEMPTS)
-    with pytest.raises(DeviceError) as err:
-        lamp.measure_current_a()
-    message = str(err.value)
-    assert not err.value.transient
-    assert message.startswith(f"lamp: MEASure:CURrent? failed {ATTEMPTS} times") and answer in message
-
-
-def test_a_fault_after_a_setting_resends_it(lamp, peer, events):
-    peer.inject("garbled")                                 # hits the error read after the setting
-    lamp.set_current(2.5)
-    assert peer.current_a == 2.5
-    assert events[0][1]["what"] == "SOURce:CURrent 2.5"
-
-
-def test_error_queue_entry_is_a_persistent_refusal(lamp, peer, events):
-    peer.inject("error_queue")
-    with pytest.raises(DeviceError) as err:
-        lamp.set_output(True)
-    assert not err.value.transient and events == []
-    assert str(err.value) == "lamp: 'OUTPut ON' refused: -300,Device-specific error"
-    lamp.set_output(True)                                  # the queue was drained
-    assert peer.output_on
-
-
-@pytest.mark.parametrize("current_a", [-0.5, 10.5])
-def test_unreachable_current_is_refused_before_the_ramp_starts(lamp, peer, world, current_a):
-    t0 = world.clock.now()
-    with pytest.raises(DeviceError, match=r"current .* A outside the supply's 0 … 10 A"):
-        lamp.set_current(current_a, ramp_s=5.0)
-    assert peer.current_a == 0.0 and world.clock.now() == t0
-
-
-def test_out_of_range_setting_is_refused_by_the_supply(lamp, monkeypatch):
-    monkeypatch.setattr(lamp, "max_current_a", 20.0)       # a driver that believed a larger supply
-    with pytest.raises(DeviceError, match=r"'SOURce:CURrent 12' refused: -222,Data out of range"):
-        lamp.set_current(12.0)
-
-
-def test_burn_out_shows_as_no_current_at_the_voltage_limit(lamp, peer, world):
-    lamp.set_current(4.17)
-    lamp.set_output(True)
-    peer.inject("burnout")
-    assert lamp.measure_current_a() == 0.0
-    assert lamp.measure_voltage_v() == peer.max_voltage_v
-    assert world.illuminance_normal_lx() == 0.0
-    world.lamp.replace()
-    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
-
-
-def test_switching_off_is_confirmed_by_read_back_despite_stale_errors(lamp, peer, events):
-    lamp.set_output(True)
-    peer.inject("error_queue", count=2)
-    lamp.set_output(False)
-    assert not peer.output_on
-    assert events == [("device_errors", {"device": "lamp", "what": "OUTPut OFF",
-                                         "errors": ["-300,Device-specific error"] * 2})]
-
-
-def test_switching_off_gets_more_attempts_than_other_commands(lamp, peer, events):
-    lamp.set_output(True)
-    for fault in ("no_reply", "disconnect", "garbled"):    # one more than ATTEMPTS
-        peer.inject(fault)
-    lamp.set_output(False)
-    assert not peer.output_on
-    assert [kind for kind, _ in events].count("retry") == 3
-
-
-# -- the peer's SCPI parser --------------------------------------------------------------------
-def test_peer_accepts_long_short_and_any_case(lamp, peer):
-    for line, value in (("SOUR:CURR 4.17", 4.17), ("source:current 2.5", 2.5), ("Sour:Cur 1", 1.0),
-                        (":SOURce:CURrent 3", 3.0)):
-        ask(peer, line)
-        assert peer.current_a == value
-    assert ask(peer, "MEAS:VOLT?", "meas:curr?", "SOUR:CURR?", "outp?", "*idn?", "syst:rem:cv?", "SYST:ERR?") == \
-        ["0.0000", "0.0000", "3.0000", "0", peer.identity, "REMote", "0,None"]
-
-
-def test_peer_queues_scpi_errors(lamp, peer):
-    ask(peer, "SYST:REM:CC LOC")
-    assert ask(peer, "VOLT 3", "SOUR:CURR 1", "SYST:REM:CC REM", "SOUR:CURR 11", "SOUR:CURR abc", "OUTP maybe",
-               "MEAS:CURR? 2", "SOUR:CURR", "MEAS:VOLT") == [None] * 9
-    assert ask(peer, *["SYST:ERR?"] * 9) == [
-        "-113,Undefined header", "-221,Settings conflict", "-222,Data out of range", "-104,Data type error",
-        "-224,Illegal parameter value", "-108,Parameter not allowed", "-109,Missing parameter",
-        "-113,Undefined header", "0,None"]
-    assert peer.current_a == 0.0
-
-
-def test_peer_error_queue_holds_ten_entries_and_reports_overflow(lamp, peer):
-    ask(peer, *["BOGUS"] * 12)
-    assert ask(peer, *["SYST:ERR?"] * 11) == ["-113,Undefined header"] * 9 + ["-350,Queue overflow", "0,None"]
-    peer.inject("error_queue")
-    ask(peer, "*CLS")
-    assert ask(peer, "SYST:ERR?") == ["0,None"]
-
-
-def test_peer_stop_is_idempotent_and_refuses_unknown_faults():
-    peer = DeltaSMPeer(SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}))
-    with pytest.raises(ValueError, match="unknown fault"):
-        peer.inject("fire")
-    assert peer.start().startswith("socket://127.0.0.1:")
-    peer.stop()
-    peer.stop()
+    assert events[0][1]["error"] == f"lamp: garbled reply to 'MEASure:CURrent?': {garbled!r}"
+    assert replay.opens == 2

@@ -1,81 +1,57 @@
-"""Modbus axis driver against the simulated controller over loopback TCP and RTU-over-socket."""
+"""Modbus axis driver: register conversions, URLs, and the exact request/reply PDUs, replayed in memory
+and checked against the simulated controller's own replies.
 
-import select
-import socket
-import threading
-from types import SimpleNamespace
+The driver against the simulated controller over TCP and RTU, with every fault, is in
+test_modbus_axis_integration.py.
+"""
 
 import pytest
-from rig.drivers.interfaces import TwoAxisPositioner
-from rig.drivers.modbus_axis import (
-    ModbusAxisController,
-    Status,
-    int32_to_regs,
-    modbus_client,
-    regs_to_int32,
-    regs_to_text,
-    text_to_regs,
-)
-from rig.drivers.retry import RetryPolicy
-from rig.simulators.modbus_axis_server import ModbusAxisServer
-from rig.simulators.world import SimWorld
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError
-from rig.core.motion import move_time_s, position_at
+from rig.drivers.interfaces import TwoAxisPositioner
+from rig.drivers.modbus_axis import ModbusAxisController, modbus_client
+from rig.drivers.modbus_axis_map import int32_to_regs, regs_to_int32, regs_to_text, text_to_regs
+from rig.drivers.retry import RetryPolicy
 from rig.physics.brdf_models import get_model
+from rig.simulators.clock import SimClock
+from rig.simulators.modbus_axis_server import ModbusAxisServer
+from rig.simulators.world import SimWorld
 
 ARM = [(name, AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30, settle_s=0.2))
        for name in ("arm_azimuth", "arm_polar")]
-STAGE = [(name, AxisConfig(limits_deg=(-90, 90), speed_deg_s=10, accel_deg_s2=20, settle_s=0.2))
-         for name in ("stage_vertical", "stage_normal")]
-LASH = 0.001            # half the simulator's default backlash: the load lags the last travel by this
+h = bytes.fromhex
+#: `move_to(150.0, -12.345)` and the read-backs: Modbus/TCP PDUs (header stripped), request then reply.
+MOVE_REQUESTS = [
+    # FC 23: read STATUS..COMMAND_POS of axis 0, write TARGET 150000, SPEED 15000, ACCEL 30000, START
+    h("17 0108 0008 0100 0008 10 0002 49F0 0000 3A98 0000 7530 0000 0001"),
+    # axis 1, target -12345 steps
+    h("17 0208 0008 0200 0008 10 FFFF CFC7 0000 3A98 0000 7530 0000 0001"),
+    h("03 0108 0008"),          # one status poll per axis after the predicted move time
+    h("03 0208 0008"),
+    h("03 010C 0002"),          # encoder read-backs
+    h("03 020C 0002"),
+]
+MOVE_REPLIES = [
+    # BUSY, no alarm, encoder -1 step (load behind by the backlash), command position 0
+    h("17 10 0000 0002 0000 0000 FFFF FFFF 0000 0000"),
+    h("17 10 0000 0002 0000 0000 FFFF FFFF 0000 0000"),
+    h("03 10 0000 0005 0000 0000 0002 49EF 0002 49F0"),     # READY|IN_POSITION, 149999, 150000
+    h("03 10 0000 0005 0000 0000 FFFF CFC8 FFFF CFC7"),     # -12344, -12345
+    h("03 04 0002 49EF"),
+    h("03 04 FFFF CFC8"),
+]
 
 
-def make_world() -> SimWorld:
-    """Repeatability noise off, so read-backs are exact (backlash stays)."""
-    return SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0, axis_zero_sigma_deg=0.0)), get_model("lambert"),
-                    {"kd": 0.5})
+def axes_of(controller: ModbusAxisController) -> list:
+    return [controller.axis(i, n, 1000.0, c.speed_deg_s, c.accel_deg_s2, c.settle_s) for i, (n, c) in enumerate(ARM)]
 
 
-def connect(url, world, name, axes, *, timeout_s=0.5):
-    controller = ModbusAxisController(url, name=name, clock=world.clock, timeout_s=timeout_s,
-                                      retry=RetryPolicy(attempts=3, backoff_s=0.05))
-    events = []
-    controller.events = lambda kind, **fields: events.append((kind, fields))
-    return controller, events, [controller.axis(i, n, 1000.0, c.speed_deg_s, c.accel_deg_s2, c.settle_s)
-                                for i, (n, c) in enumerate(axes)]
-
-
-@pytest.fixture
-def no_thread_leak():
-    before = threading.active_count()
-    yield
-    assert threading.active_count() == before
-
-
-def _rig(framer, timeout_s):
-    world = make_world()
-    server = ModbusAxisServer(world, ARM, framer=framer)
-    controller, events, axes = connect(server.start(), world, "arm", ARM, timeout_s=timeout_s)
-    return SimpleNamespace(world=world, server=server, controller=controller, events=events, axes=axes)
-
-
-@pytest.fixture(params=["tcp", "rtu"])
-def rig(request, no_thread_leak):
-    r = _rig(request.param, timeout_s=0.5)
-    yield r
-    r.controller.close()
-    r.server.stop()
-
-
-@pytest.fixture
-def faulty(request, no_thread_leak):
-    """Short timeouts, so that injected silences cost little wall time; TCP unless parametrised."""
-    r = _rig(getattr(request, "param", "tcp"), timeout_s=0.2)
-    yield r
-    r.controller.close()
-    r.server.stop()
+def move_and_read_back(axes: list) -> None:
+    azimuth, polar = axes
+    TwoAxisPositioner("arm", azimuth, polar).move_to(150.0, -12.345)
+    assert azimuth.position_deg() == pytest.approx(149.999, abs=1e-9)      # encoder steps / 1000
+    assert polar.position_deg() == pytest.approx(-12.344, abs=1e-9)
 
 
 # -- conversions ------------------------------------------------------------------------------
@@ -102,238 +78,59 @@ def test_bad_url_is_refused(url):
         modbus_client(url, 1.0)
 
 
-# -- driver against the simulated controller, TCP and RTU ------------------------------------
-def test_move_wait_read_back(rig):
-    azimuth, polar = rig.axes
-    clock = rig.world.clock
-    t0 = clock.now()
-    TwoAxisPositioner("arm", azimuth, polar).move_to(30.0, -45.5)
-    # one status poll each: the wait slept exactly the predicted time
-    assert clock.now() - t0 == pytest.approx(azimuth.move_time_s(0, -45.5), abs=1e-5)
-    assert azimuth.position_deg() == pytest.approx(30.0 - LASH, abs=1e-9)
-    assert polar.position_deg() == pytest.approx(-45.5 + LASH, abs=1e-9)
-    assert rig.world.axis_truth["arm_polar"]() == pytest.approx(-45.5 + LASH)
-    assert azimuth.state().status == Status.READY | Status.IN_POSITION and not azimuth.is_moving()
-    assert rig.events == []
+# -- exact register exchanges -----------------------------------------------------------------
+def replayed_controller(replay, clock: SimClock) -> ModbusAxisController:
+    return ModbusAxisController("modbus-tcp://arm:502", name="arm", clock=clock, timeout_s=0.5,
+                                retry=RetryPolicy(attempts=3, backoff_s=0.05), open_client=replay.open_client)
 
 
-def test_reads_follow_the_move_on_the_simulated_clock(rig):
-    azimuth = rig.axes[0]
-    azimuth.start_move(60.0)
-    rig.world.clock.sleep(1.0)
-    assert azimuth.is_moving()
-    assert azimuth.position_deg() == pytest.approx(position_at(0.0, 60.0, 1.0, 15, 30) - LASH, abs=1e-3)
-    azimuth.wait()
-    assert azimuth.position_deg() == pytest.approx(60.0 - LASH)
+def test_register_exchanges_replayed(expected_protocol):
+    with expected_protocol(list(zip(MOVE_REQUESTS, MOVE_REPLIES))) as replay:
+        move_and_read_back(axes_of(replayed_controller(replay, SimClock())))
+    assert [request for request, _ in replay.written] == MOVE_REQUESTS
 
 
-def test_stop_halts_the_move(rig):
-    azimuth = rig.axes[0]
-    azimuth.start_move(90.0)
-    rig.world.clock.sleep(2.0)
-    azimuth.stop()
-    azimuth.wait(timeout_s=1.0)
-    assert not azimuth.is_moving()
-    assert azimuth.position_deg() == pytest.approx(position_at(0.0, 90.0, 2.0, 15, 30) - LASH, abs=1e-3)
+def test_register_exchanges_recorded_from_the_simulated_controller():
+    """The simulated controller answers the driver's requests with exactly the replayed replies."""
+    world = SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0, axis_zero_sigma_deg=0.0)),
+                     get_model("lambert"), {"kd": 0.5})
+    frames: dict[bool, list[bytes]] = {True: [], False: []}
 
+    def record(sending: bool, frame: bytes) -> bytes:
+        if len(frame) >= 6 and len(frame) == 6 + int.from_bytes(frame[4:6], "big"):    # a whole frame
+            frames[sending].append(frame[7:])
+        return frame
 
-def test_home_runs_to_zero_and_sets_homed(rig):
-    polar = rig.axes[1]
-    polar.start_move(20.0)
-    polar.wait()
-    assert Status.HOMED not in polar.state().status
-    t0 = rig.world.clock.now()
-    polar.home()
-    assert Status.HOMED in polar.state().status
-    assert polar.position_deg() == pytest.approx(-LASH)
-    run = move_time_s(20.0, 15, 30) + 0.2
-    assert run + 0.5 <= rig.world.clock.now() - t0 <= run + 0.5 + polar.poll_s + 1e-6   # + sensor search
+    def recording_client(url: str, timeout_s: float):
+        client = modbus_client(url, timeout_s)
+        client.transaction.trace_packet = record
+        return client
 
-
-def test_identity(rig):
-    assert rig.controller.identity().startswith("rig simulators SIM-2AX Modbus fw 1.0.0")
-    assert rig.axes[1].identity().endswith("axis 1")
-
-
-def test_target_beyond_soft_limits_is_an_alarm_until_reset(rig):
-    azimuth = rig.axes[0]
-    with pytest.raises(DeviceError, match=r"arm_azimuth: start move: alarm 0x67 \(software overtravel") as err:
-        azimuth.start_move(200.0)
-    assert not err.value.transient
-    with pytest.raises(DeviceError, match="0x67"):
-        azimuth.start_move(10.0)
-    azimuth.reset_alarm()
-    azimuth.start_move(10.0)
-    azimuth.wait()
-    assert azimuth.position_deg() == pytest.approx(10.0 - LASH)
-
-
-# -- exact register exchanges (Modbus/TCP frames, MBAP header stripped) -----------------------
-class RecordingRelay:
-    """Loopback TCP relay between driver and server that records every Modbus/TCP PDU each way."""
-
-    def __init__(self, server_port: int):
-        self.listener = socket.create_server(("127.0.0.1", 0))
-        self.port = self.listener.getsockname()[1]
-        self.requests: list[bytes] = []
-        self.replies: list[bytes] = []
-        self.thread = threading.Thread(target=self._relay, args=(server_port,), daemon=True)
-        self.thread.start()
-
-    def _relay(self, server_port: int) -> None:
-        driver, _ = self.listener.accept()
-        server = socket.create_connection(("127.0.0.1", server_port))
-        route = {driver: (server, self.requests), server: (driver, self.replies)}
-        pending = {driver: b"", server: b""}
-        with driver, server:
-            while True:
-                for sock in select.select(list(route), [], [])[0]:
-                    data = sock.recv(4096)
-                    if not data:
-                        return
-                    peer, frames = route[sock]
-                    pending[sock] += data
-                    while len(pending[sock]) >= 6 and len(pending[sock]) >= (n := 6 + int.from_bytes(
-                            pending[sock][4:6], "big")):
-                        frames.append(pending[sock][7:n])
-                        pending[sock] = pending[sock][n:]
-                    peer.sendall(data)                  # after recording: the test reads the record next
-
-    def close(self) -> None:
-        self.thread.join(timeout=2.0)
-        self.listener.close()
-
-
-@pytest.fixture
-def relayed(no_thread_leak):
-    world = make_world()
     with ModbusAxisServer(world, ARM) as server:
-        relay = RecordingRelay(int(server.url.rsplit(":", 1)[1]))
-        controller, _, axes = connect(f"modbus-tcp://127.0.0.1:{relay.port}", world, "arm", ARM)
-        yield SimpleNamespace(relay=relay, axes=axes, world=world)
+        controller = ModbusAxisController(server.url, name="arm", clock=world.clock, timeout_s=0.5,
+                                          open_client=recording_client)
+        move_and_read_back(axes_of(controller))
         controller.close()
-        relay.close()
+    assert frames[True] == MOVE_REQUESTS
+    assert frames[False] == MOVE_REPLIES
 
 
-def test_register_exchanges_replayed(relayed):
-    azimuth, polar = relayed.axes
-    TwoAxisPositioner("arm", azimuth, polar).move_to(150.0, -12.345)
-    assert azimuth.position_deg() == pytest.approx(149.999, abs=1e-9)      # encoder steps / 1000
-    assert polar.position_deg() == pytest.approx(-12.344, abs=1e-9)
-    h = bytes.fromhex
-    assert relayed.relay.requests == [
-        # FC 23: read STATUS..COMMAND_POS of axis 0, write TARGET 150000, SPEED 15000, ACCEL 30000, START
-        h("17 0108 0008 0100 0008 10 0002 49F0 0000 3A98 0000 7530 0000 0001"),
-        # axis 1, target -12345 steps
-        h("17 0208 0008 0200 0008 10 FFFF CFC7 0000 3A98 0000 7530 0000 0001"),
-        h("03 0108 0008"),          # one status poll per axis after the predicted move time
-        h("03 0208 0008"),
-        h("03 010C 0002"),          # encoder read-backs
-        h("03 020C 0002"),
-    ]
-    assert relayed.relay.replies == [
-        # BUSY, no alarm, encoder -1 step (load behind by the backlash), command position 0
-        h("17 10 0000 0002 0000 0000 FFFF FFFF 0000 0000"),
-        h("17 10 0000 0002 0000 0000 FFFF FFFF 0000 0000"),
-        h("03 10 0000 0005 0000 0000 0002 49EF 0002 49F0"),     # READY|IN_POSITION, 149999, 150000
-        h("03 10 0000 0005 0000 0000 FFFF CFC8 FFFF CFC7"),     # -12344, -12345
-        h("03 04 0002 49EF"),
-        h("03 04 FFFF CFC8"),
-    ]
+def test_no_reply_is_retried_after_a_reconnect_with_the_same_request(expected_protocol):
+    encoder = h("03 010C 0002")
+    with expected_protocol([(encoder, None), (encoder, h("03 04 0002 49EF"))]) as replay:
+        controller = replayed_controller(replay, SimClock())
+        events = []
+        controller.events = lambda kind, **fields: events.append((kind, fields))
+        assert axes_of(controller)[0].position_deg() == pytest.approx(149.999, abs=1e-9)
+    assert [kind for kind, _ in events] == ["retry", "reconnect"]
+    assert replay.opens == 2
 
 
-# -- faults -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("faulty", ["tcp", "rtu"], indirect=True)
-@pytest.mark.parametrize("fault", ["no_reply", "disconnect", "garbled"])
-def test_transient_fault_is_retried_after_a_reconnect(faulty, fault):
-    azimuth = faulty.axes[0]
-    faulty.server.inject(fault)
-    azimuth.start_move(10.0)
-    azimuth.wait()
-    assert azimuth.position_deg() == pytest.approx(10.0 - LASH)
-    kinds = [kind for kind, _ in faulty.events]
-    assert kinds == ["retry", "reconnect"]
-    retry = faulty.events[0][1]
-    assert retry["device"] == "arm_azimuth" and retry["what"] == "start move" and "0x0100" in retry["error"]
-
-
-def test_exception_reply_is_a_persistent_error_naming_device_register_and_answer(faulty):
-    faulty.server.inject("exception")
-    with pytest.raises(DeviceError) as err:
-        faulty.axes[0].position_deg()
-    message = str(err.value)
-    assert message.startswith("arm_azimuth: controller 'arm': read encoder position at register 0x010C")
-    assert message.endswith("answered Modbus exception 4 (device failure)")
-    assert not err.value.transient and faulty.events == []
-    assert faulty.axes[0].position_deg() == pytest.approx(-LASH)            # one request only
-
-
-def test_fault_can_target_one_axis(faulty):
-    faulty.server.inject("exception", axis=1)
-    assert faulty.axes[0].position_deg() == pytest.approx(-LASH)
-    with pytest.raises(DeviceError, match="arm_polar: .* register 0x020C .* exception 4"):
-        faulty.axes[1].position_deg()
-
-
-def test_silence_outlasting_the_retries_is_persistent(faulty):
-    faulty.server.inject("no_reply", count=3)
-    with pytest.raises(DeviceError, match=r"read encoder position failed 3 times; last: .*0x010C.*no valid reply"):
-        faulty.axes[0].position_deg()
-    assert [kind for kind, _ in faulty.events] == ["retry", "reconnect"] * 2
-    assert faulty.axes[0].position_deg() == pytest.approx(-LASH)
-
-
-def test_alarm_during_a_move_names_code_and_meaning(faulty):
-    azimuth = faulty.axes[0]
-    faulty.server.inject("alarm", axis=0)
-    azimuth.start_move(10.0)
-    with pytest.raises(DeviceError, match=r"arm_azimuth: move: alarm 0x10 \(excessive position deviation"):
-        azimuth.wait()
-    azimuth.reset_alarm()
-    azimuth.start_move(5.0)
-    azimuth.wait()
-
-
-def test_device_refusals_are_exception_replies(faulty):
-    with pytest.raises(DeviceError, match=r"register 0x0108 .* exception 2 \(illegal address\)"):
-        faulty.controller.write("arm", "write status", 0x0108, [0, 0])          # read-only register
-    stalled = faulty.controller.axis(0, "arm_azimuth", 1000.0, 0.0, 30.0, 0.2)  # speed 0
-    with pytest.raises(DeviceError, match=r"start move .* exception 3 \(illegal value\)"):
-        stalled.start_move(10.0)
-
-
-# -- life cycle and per-point cost ------------------------------------------------------------
-def test_server_stops_cleanly_and_idempotently(no_thread_leak):
-    world = make_world()
-    server = ModbusAxisServer(world, ARM, framer="rtu")
-    with server:
-        assert server.url.startswith("modbus-rtu://socket://127.0.0.1:")
-        controller, _, axes = connect(server.url, world, "arm", ARM)
-        axes[0].position_deg()
-    server.stop()
-    with pytest.raises(DeviceError, match="failed 3 times"):
-        controller.identity()
-    controller.close()
-
-
-def test_one_point_of_four_axes_on_two_controllers(no_thread_leak):
-    """start + wait + read-back of 4 axes on two controllers, point after point (the protocol's wall
-    time per point is a benchmark: benchmarks/paper_campaign.py)."""
-    world = make_world()
-    with ModbusAxisServer(world, ARM) as arm_server, ModbusAxisServer(world, STAGE) as stage_server:
-        controllers, axes = [], []
-        for url, name, cfg in ((stage_server.url, "stage", STAGE), (arm_server.url, "arm", ARM)):
-            controller, _, these = connect(url, world, name, cfg)
-            controllers.append(controller)
-            axes += these
-        for i in range(40):
-            sign = 1 if i % 2 else -1
-            targets = (sign * 5.0, sign * 10.0, sign * 20.0, sign * 30.0)
-            for axis, target in zip(axes, targets):
-                axis.start_move(target)
-            for axis in axes:
-                axis.wait()
-            # the load lags the last travel by the backlash; one encoder step is 0.001°
-            assert [axis.position_deg() for axis in axes] == pytest.approx(targets, abs=LASH + 0.001)
-        for controller in controllers:
-            controller.close()
+def test_exception_reply_is_persistent_and_names_register_and_code(expected_protocol):
+    with expected_protocol([(h("03 010C 0002"), h("83 04"))]) as replay:
+        controller = replayed_controller(replay, SimClock())
+        with pytest.raises(DeviceError) as err:
+            axes_of(controller)[0].position_deg()
+    assert str(err.value) == ("arm_azimuth: controller 'arm': read encoder position at register 0x010C "
+                              "(id 1, modbus-tcp://arm:502) answered Modbus exception 4 (device failure)")
+    assert not err.value.transient

@@ -1,75 +1,22 @@
-"""P9710 optometer driver: exact byte exchanges, and the driver against its pty peer."""
+"""P9710 optometer driver: the exact byte exchanges, replayed in memory.
 
-import os
-import re
-import threading
-import time
-from collections import deque
+The driver against its pty peer, with every fault, is in test_p9710_integration.py.
+"""
 
 import pytest
-from rig.drivers.p9710 import P9710
-from rig.simulators.p9710_peer import FAULTS, P9710Peer, PtyLinePeer, range_for
-from rig.simulators.world import SimWorld
 
-from rig.config.rigfile import MeterConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError
-from rig.physics.brdf_models import get_model
+from rig.drivers.p9710 import P9710
+from rig.simulators.clock import SimClock
 
 CAL = 1.0e9
 CONNECT = [(b"GI\n", b"P9710 V5.6\n"), (b"TT\n", b"12345\n"), (b"GK\n", b"VL-3701\n"), (b"SB1\n", b"OK\n")]
 MA_OK = (b"MA\n", b"1.2345E-06\n")
-#: Each injectable fault and what the driver's error says the meter answered (a regex).
-FAULT_REPLIES = pytest.mark.parametrize("fault, reply", [
-    pytest.param("no_reply", re.escape("no complete reply to 'MA' within 0.2 s (got b'')"), id="no_reply"),
-    pytest.param("garbled", re.escape("garbled reply to 'MA': b'\\x"), id="garbled"),
-    pytest.param("short", re.escape("no complete reply to 'MA' within 0.2 s (got b'") + r"\d\.\d{4}E-06'\)",
-                 id="short"),
-    pytest.param("overrange", re.escape("overrange: 'MA' answered 'OVER'"), id="overrange"),
-])
-
-
-class ScriptedPeer(PtyLinePeer):
-    """Answers a fixed script of (expected request, canned reply); records every line it received."""
-
-    def __init__(self, script):
-        super().__init__()
-        self.script = deque(script)
-        self.received = []
-
-    def answer(self, line):
-        self.received.append(line + b"\n")
-        expected, reply = self.script.popleft() if self.script else (None, None)
-        return reply if line + b"\n" == expected else None
 
 
 @pytest.fixture
-def no_leaks():
-    """Every pty, port and reader thread a test opened is closed by its end."""
-    fds, threads = set(os.listdir("/proc/self/fd")), set(threading.enumerate())
-    yield
-    assert set(os.listdir("/proc/self/fd")) == fds
-    assert set(threading.enumerate()) == threads
-
-
-def lit_world(**sim) -> SimWorld:
-    """A warm, steady lamp at nominal current."""
-    cfg = RigConfig(meter=MeterConfig(calibration_lx_per_a=CAL),
-                    simulation=SimulationConfig(**{"warmup_amplitude": 0.0, "drift_per_hour": 0.0, **sim}))
-    world = SimWorld(cfg, get_model("lambert"), {"kd": 0.5})
-    world.lamp.set_current(cfg.lamp.current_a, 0)
-    world.lamp.switch(True)
-    return world
-
-
-@pytest.fixture
-def world():
-    return lit_world()
-
-
-@pytest.fixture
-def peer(world, no_leaks):
-    with P9710Peer(world) as p:
-        yield p
+def clock() -> SimClock:
+    return SimClock()
 
 
 @pytest.fixture
@@ -77,48 +24,39 @@ def events():
     return []
 
 
-def connect(path, world, events, cal=CAL) -> P9710:
-    meter = P9710(path, calibration_lx_per_a=cal, clock=world.clock, timeout_s=0.2)
+def connect(replay, clock, events, cal=CAL) -> P9710:
+    meter = P9710("/dev/ttyUSB0", calibration_lx_per_a=cal, clock=clock, timeout_s=0.2, open_port=replay.open_port)
     meter.events = lambda kind, **fields: events.append((kind, fields))
     return meter
-
-
-@pytest.fixture
-def meter(peer, world, events):
-    m = connect(peer.path, world, events)
-    yield m
-    m.close()
 
 
 def requests(script):
     return [request for request, _ in script]
 
 
-# -- exact byte exchanges ------------------------------------------------------------------------
-
-def test_connect_identity_and_reading_bytes(world, events, no_leaks):
+def test_connect_identity_and_reading_bytes(expected_protocol, clock, events):
     script = CONNECT + [MA_OK, (b"GR\n", b"3\n")]
-    with ScriptedPeer(script) as peer:
-        meter = connect(peer.path, world, events)
-        t0 = world.clock.now()
+    with expected_protocol(script) as replay:
+        meter = connect(replay, clock, events)
+        t0 = clock.now()
         reading = meter.read()
         assert meter.measuring_range() == 3
         meter.close()
-    assert peer.received == requests(script)            # no MV, no stray bytes, LF only
+    assert requests(replay.written) == requests(script)            # no MV, no stray bytes, LF only
     assert meter.identity() == "Gigahertz-Optik P9710 V5.6 SN 12345 detector VL-3701"
     assert reading.photocurrent_a == 1.2345e-6
     assert reading.illuminance_lx == pytest.approx(1.2345e-6 * CAL)
     assert reading.calibration_lx_per_a == CAL
-    assert world.clock.now() - t0 == pytest.approx(0.2)  # one integration
+    assert clock.now() - t0 == pytest.approx(0.2)  # one integration
     assert events == []
 
 
-def test_another_instrument_is_refused_at_once(world, events, no_leaks):
-    with ScriptedPeer([(b"GI\n", b"K8000 V1.0\n")]) as peer:
+def test_another_instrument_is_refused_at_once(expected_protocol, clock, events):
+    with expected_protocol([(b"GI\n", b"K8000 V1.0\n")]) as replay:
         with pytest.raises(DeviceError, match=r"meter: 'GI' answered 'K8000 V1.0': not a P9710") as err:
-            connect(peer.path, world, events)
+            connect(replay, clock, events)
     assert not err.value.transient
-    assert peer.received == [b"GI\n"] and events == []
+    assert requests(replay.written) == [b"GI\n"] and events == []
 
 
 @pytest.mark.parametrize("bad, message", [
@@ -128,123 +66,13 @@ def test_another_instrument_is_refused_at_once(world, events, no_leaks):
     (b"nan\n", "non-numeric reply to 'MA': 'nan'"),
     (b"ERR\n", "non-numeric reply to 'MA': 'ERR'"),
 ])
-def test_bad_reading_is_retried_after_a_reconnect(world, events, no_leaks, bad, message):
+def test_bad_reading_is_retried_after_a_reconnect(expected_protocol, clock, events, bad, message):
     script = CONNECT + [(b"MA\n", bad)] + CONNECT + [MA_OK]
-    with ScriptedPeer(script) as peer:
-        meter = connect(peer.path, world, events)
+    with expected_protocol(script) as replay:
+        meter = connect(replay, clock, events)
         reading = meter.read()
         meter.close()
-    assert peer.received == requests(script)
+    assert requests(replay.written) == requests(script)
     assert reading.photocurrent_a == 1.2345e-6
     assert events == [("retry", dict(device="meter", what="MA", attempt=1, error=f"meter: {message}")),
                       ("reconnect", dict(device="meter", what="MA", attempt=1))]
-
-
-# -- driver against the simulated meter ----------------------------------------------------------
-
-def test_identity_and_autorange_on_connect(meter, peer):
-    assert meter.identity() == "Gigahertz-Optik P9710 V5.6 SN 97100042 detector VL-3701"
-    assert peer.autorange
-
-
-@pytest.mark.parametrize("driver_cal", [CAL, 1.02 * CAL])
-def test_reading_is_photocurrent_times_configured_factor(events, no_leaks, driver_cal):
-    """The factor comes from the driver's configuration; a wrong one scales the result."""
-    world = lit_world(meter_noise_rel=0.0)
-    with P9710Peer(world) as peer:
-        meter = connect(peer.path, world, events, cal=driver_cal)
-        reading = meter.read()
-        meter.close()
-    truth = world.illuminance_normal_lx()
-    assert reading.calibration_lx_per_a == driver_cal
-    assert reading.photocurrent_a == pytest.approx(truth / CAL, rel=1e-4)
-    assert reading.illuminance_lx == pytest.approx(truth * driver_cal / CAL, rel=1e-4)
-
-
-def test_readings_scatter_with_the_configured_noise(meter, world):
-    deviations = []
-    for _ in range(50):
-        reading = meter.read()
-        deviations.append(reading.illuminance_lx / world.illuminance_normal_lx() - 1)
-    noise = world.config.simulation.meter_noise_rel
-    mean = sum(deviations) / len(deviations)
-    std = (sum((d - mean) ** 2 for d in deviations) / (len(deviations) - 1)) ** 0.5
-    assert abs(mean) < 4 * noise / len(deviations) ** 0.5
-    assert 0.6 * noise < std < 1.4 * noise
-
-
-def test_autorange_follows_a_jump_with_one_transient_overrange(meter, world, events):
-    world.lamp.set_current(0.2 * world.config.lamp.current_a, 0)
-    dim = meter.read()
-    assert meter.measuring_range() == range_for(dim.photocurrent_a) == 4
-    assert events == []
-    world.lamp.set_current(world.config.lamp.current_a, 0)
-    bright = meter.read()
-    assert bright.illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
-    assert meter.measuring_range() == range_for(bright.photocurrent_a) == 2
-    assert [kind for kind, _ in events] == ["retry", "reconnect"]
-    assert events[0][1]["error"] == "meter: overrange: 'MA' answered 'OVER'"
-
-
-def test_reconnect_restores_a_forgotten_autorange(meter, peer, world, events):
-    """A power-cycled meter holds its range; the reconnect after the overrange sends SB1 again."""
-    peer.autorange, peer.range = False, 7
-    assert meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
-    assert peer.autorange
-    assert [kind for kind, _ in events] == ["retry", "reconnect", "retry", "reconnect"]
-
-
-def test_current_beyond_the_top_range_is_a_persistent_error(world, events, no_leaks):
-    with P9710Peer(world, responsivity_a_per_lx=1e-6) as peer:    # 5 mA: beyond 2 mA full scale
-        meter = connect(peer.path, world, events)
-        with pytest.raises(DeviceError, match=r"^meter: MA failed 3 times; last: meter: overrange: "
-                                              r"'MA' answered 'OVER'$") as err:
-            meter.read()
-        meter.close()
-    assert not err.value.transient
-
-
-@FAULT_REPLIES
-def test_each_fault_costs_one_retry(meter, peer, world, events, fault, reply):
-    peer.inject(fault)
-    assert meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
-    (retry, retry_fields), (reconnect, _) = events
-    assert (retry, reconnect) == ("retry", "reconnect")
-    assert retry_fields["what"] == "MA" and re.match(f"meter: {reply}", retry_fields["error"])
-
-
-@FAULT_REPLIES
-def test_a_lasting_fault_is_a_clean_persistent_error(meter, peer, world, events, fault, reply):
-    peer.inject(fault, count=3)
-    with pytest.raises(DeviceError) as err:
-        meter.read()
-    assert re.match(f"meter: MA failed 3 times; last: meter: {reply}", str(err.value))
-    assert err.value.device == "meter" and not err.value.transient
-    assert [kind for kind, _ in events] == ["retry", "reconnect"] * 2
-    assert meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
-
-
-def test_reading_costs_rig_time_not_wall_time(meter, world, monkeypatch):
-    """The 0.2 s integrations are slept on the rig clock; nothing in the driver or peer sleeps in wall time."""
-    wall_sleeps = []
-    monkeypatch.setattr(time, "sleep", wall_sleeps.append)
-    t_rig = world.clock.now()
-    for _ in range(20):
-        meter.read()
-    assert world.clock.now() - t_rig == pytest.approx(20 * 0.2)
-    assert wall_sleeps == []
-
-
-# -- the peer itself -----------------------------------------------------------------------------
-
-def test_peer_lifecycle(world, no_leaks):
-    peer = P9710Peer(world)
-    path = peer.start()
-    assert path.startswith("/dev/pts/") and os.path.exists(path)
-    with pytest.raises(RuntimeError, match="already started"):
-        peer.start()
-    peer.stop()
-    peer.stop()
-    with pytest.raises(ValueError, match="unknown fault 'smoke'"):
-        peer.inject("smoke")
-    assert set(FAULTS) == {"no_reply", "garbled", "short", "overrange"}

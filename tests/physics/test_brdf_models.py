@@ -5,17 +5,25 @@ vector); Portsmouth 2026 (MRM); Oren & Nayar 1994 Eq. 30; Walter 2007 / Heitz 20
 Expected values are computed here from the papers' formulas, not from the module's helpers.
 """
 
-import itertools
-
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from brdf_cases import (
+    ENERGY_GRIDS,
+    PAPER_FITS,
+    RECIPROCAL,
+    RM1,
+    beckmann_by_hand,
+    cook_torrance_g_by_hand,
+    d,
+    ggx_d_by_hand,
+    schlick_by_hand,
+    smith_lambda_by_hand,
+    unit,
+)
 from scipy.integrate import quad
 
 from rig.physics.brdf_models import (
     MODELS,
-    albedo,
     back_vector,
     beckmann_ndf,
     get_model,
@@ -23,71 +31,6 @@ from rig.physics.brdf_models import (
     mirror_about_normal,
     schlick,
 )
-from rig.physics.geometry import sph_to_vec
-
-RM1 = {"kd": 0.620, "n": 24.0, "k1": 0.158, "k2": 0.0415, "k3": 0.00133, "k4": 5.47}
-
-#: Spieringhs 2023 Tables 3, 6 and 7: RM1, RM2, RM3 per model.
-PAPER_FITS = {
-    "retrophong": [RM1,
-                   {"kd": 0.594, "n": 24.0, "k1": 0.0696, "k2": 0.0733, "k3": 6.58e-05, "k4": 8.74},
-                   {"kd": 0.701, "n": 68.0, "k1": 0.184, "k2": 1.53e-12, "k3": 0.00570, "k4": 3.40}],
-    "oren_nayar": [{"roughness": 0.865, "albedo": 0.268}, {"roughness": 0.705, "albedo": 0.275},
-                   {"roughness": 1.26, "albedo": 0.470}],
-    "beckmann_retro": [{"kd": 0.796, "alpha": 8.20, "r0": 0.995}, {"kd": 0.822, "alpha": 9.36, "r0": 0.993},
-                       {"kd": 0.996, "alpha": 1.61e3, "r0": 1.00}],
-    "blinn_retro": [{"kd": 0.919, "alpha_b": 2.77e3, "alpha_r": 7.91e3},
-                    {"kd": 0.881, "alpha_b": 2.50e3, "alpha_r": 7.10e3},
-                    {"kd": 0.993, "alpha_b": 6.72e3, "alpha_r": 1.65e4}],
-    "abc_retro": [{"kd": 0.534, "r0": 0.0472, "a_b": 1.82, "b_b": 13.5, "c_b": 1.51,
-                   "a_r": 1.02, "b_r": 0.0775, "c_r": 6.97},
-                  {"kd": 0.0303, "r0": 0.140, "a_b": 1.59, "b_b": 32.6, "c_b": 1.08,
-                   "a_r": 1.19, "b_r": 0.00779, "c_r": 0.0179},
-                  {"kd": 0.747, "r0": 0.00466, "a_b": 6.66, "b_b": 37.8, "c_b": 0.710,
-                   "a_r": 3.58, "b_r": 22.9, "c_r": 0.729}],
-}
-
-RECIPROCAL = {"lambert", "modified_phong", "oren_nayar", "beckmann_retro", "blinn_retro", "abc_retro",
-              "ggx", "mrm", "mrm_diffuse"}
-
-#: Parameter sets under which each energy-conserving claim must hold (modified Phong: kd + ks ≤ 1).
-ENERGY_GRIDS = {
-    "lambert": [{"kd": 1.0}],
-    "modified_phong": [{"kd": kd, "ks": 1.0 - kd, "n": n} for kd in (0.0, 0.5) for n in (0.1, 1.0, 10.0, 300.0)],
-    "ggx": [{"roughness": r, "f0": f0} for r in (0.23, 0.48, 0.77, 1.0) for f0 in (0.04, 1.0)],
-    "mrm": [{"roughness": r, "f0": f0} for r in (0.23, 0.48, 0.77, 1.0) for f0 in (0.04, 1.0)],
-}
-
-
-def d(theta_deg, phi_deg):
-    return sph_to_vec(np.radians(theta_deg), np.radians(phi_deg))
-
-
-def unit(v):
-    v = np.asarray(v, float)
-    return v / np.linalg.norm(v)
-
-
-def schlick_by_hand(u, r0):
-    return r0 + (1 - r0) * (1 - u) ** 5
-
-
-def beckmann_by_hand(c, alpha):          # Spieringhs 2023 Eq. 6
-    return np.exp((c**2 - 1) / (alpha**2 * c**2)) / (np.pi * alpha**2 * c**4)
-
-
-def ggx_d_by_hand(c, alpha):
-    return alpha**2 / (np.pi * (c**2 * (alpha**2 - 1) + 1) ** 2)
-
-
-def smith_lambda_by_hand(c, alpha):      # Heitz 2014 Eq. 72: (−1 + √(1 + α² tan²θ))/2
-    return (-1 + np.sqrt(1 + alpha**2 * (1 - c**2) / c**2)) / 2
-
-
-def cook_torrance_g_by_hand(i, o, h):
-    n_h, n_i, n_o, o_h = h[2], i[2], o[2], np.dot(o, h)
-    return min(1.0, 2 * n_h * n_o / o_h, 2 * n_h * n_i / o_h)
-
 
 # --- existing behaviour ---------------------------------------------------------------------
 
@@ -305,143 +248,15 @@ def test_abc_retro_closed_form():
 
     i = d(80, 0)
     c, r0 = i[2], p["r0"]
-    fwd_at = lambda cos: abc(cos, p["a_r"], p["b_r"], p["c_r"])
-    retro_at = lambda cos: abc(cos, p["a_b"], p["b_b"], p["c_b"])
+
+    def fwd_at(cos: float) -> float:
+        return abc(cos, p["a_r"], p["b_r"], p["c_r"])
+
+    def retro_at(cos: float) -> float:
+        return abc(cos, p["a_b"], p["b_b"], p["c_b"])
+
     # retro: h = i → F(1)·ABC_r(cos θi); b = n → F(cos θi)·A_b
     assert m(i, i, p) == pytest.approx(p["kd"] / np.pi + r0 * fwd_at(c) + schlick_by_hand(c, r0) * p["a_b"])
     # mirror: h = n → F(cos θi)·A_r; b = i → F(1)·ABC_b(cos θi)
     assert m(i, mirror_about_normal(i), p) == pytest.approx(
         p["kd"] / np.pi + schlick_by_hand(c, r0) * p["a_r"] + r0 * retro_at(c))
-
-
-# --- reciprocity ------------------------------------------------------------------------------
-
-def _pairs(n=400, seed=11):
-    """Random above-horizon pairs, half of them within a few degrees of the retro or mirror direction."""
-    rng = np.random.default_rng(seed)
-    wi = d(rng.uniform(0, 88, n), rng.uniform(0, 360, n))
-    wo = d(rng.uniform(0, 88, n), rng.uniform(0, 360, n))
-    near = wi * np.where(rng.random((n, 1)) < 0.5, 1.0, [-1.0, -1.0, 1.0]) + rng.normal(0, 0.03, (n, 3))
-    wo = np.where(rng.random((n, 1)) < 0.5, wo, near / np.linalg.norm(near, axis=-1, keepdims=True))
-    keep = wo[:, 2] > 0.02
-    return wi[keep], wo[keep]
-
-
-@pytest.mark.parametrize("name", sorted(RECIPROCAL))
-def test_reciprocity(name):
-    m = MODELS[name]
-    wi, wo = _pairs()
-    for p in [m.typical] + PAPER_FITS.get(name, []):
-        f = m(wi, wo, p)
-        assert np.ptp(f) > 0 or name == "lambert"
-        np.testing.assert_allclose(f, m(wo, wi, p), rtol=1e-9, atol=1e-300)
-
-
-def test_retrophong_is_not_reciprocal_and_does_not_claim_it():
-    m = MODELS["retrophong"]
-    assert not m.reciprocal and not m.energy_conserving
-    i, o = d(80, 0), d(60, 0)                                   # 20° off retro: kr(80°) ≠ kr(60°)
-    assert abs(m(i, o, RM1) / m(o, i, RM1) - 1) > 0.1
-
-
-# --- energy -----------------------------------------------------------------------------------
-
-THETA_I = np.array([0.0, 30.0, 60.0, 80.0, 85.0, 89.0])
-
-
-@pytest.mark.parametrize("name", sorted(ENERGY_GRIDS))
-def test_albedo_at_most_one_where_claimed(name):
-    for p in ENERGY_GRIDS[name]:
-        a = albedo(MODELS[name], p, THETA_I)
-        assert np.all(a <= 1 + 1e-3) and np.all(a >= 0), (p, a)
-
-
-def test_albedo_quadrature_closed_forms():
-    assert albedo(MODELS["lambert"], {"kd": 0.7}, THETA_I) == pytest.approx(0.7, abs=1e-12)
-    # (n+2)/(2π) cos^n about the mirror direction integrates to 1 at normal incidence
-    for n in (1.0, 24.0, 1000.0):
-        assert albedo(MODELS["modified_phong"], {"kd": 0.2, "ks": 0.5, "n": n}, 0.0) == pytest.approx(0.7, abs=1e-4)
-    assert albedo(MODELS["ggx"], {"roughness": 0.5, "f0": 1.0}, [[0.0, 30.0]]).shape == (1, 2)
-    # GGX with α = 1: D = 1/π and G2/(4 cos θi cos θo) = 1/(2(1 + cos θo)) at θi = 0, so E = 1 − ln 2
-    assert albedo(MODELS["ggx"], {"roughness": 1.0, "f0": 1.0}, 0.0) == pytest.approx(1 - np.log(2), abs=1e-6)
-
-
-def test_oren_nayar_albedo_exceeds_rho_near_grazing_so_no_energy_claim():
-    a = albedo(MODELS["oren_nayar"], {"roughness": 0.2, "albedo": 1.0}, [0.0, 89.0])
-    assert a[0] < 1 < a[1]
-
-
-@pytest.mark.parametrize("roughness, f0", [(0.32, 0.04), (0.23, 0.19), (0.5, 1.0), (1.0, 0.5)])
-def test_mrm_albedo_equals_ggx_albedo(roughness, f0):
-    """Portsmouth 2026: o ↦ o' keeps dω and cos θo, so MRM and GGX reflect the same energy."""
-    p = {"roughness": roughness, "f0": f0}
-    theta = np.array([0.0, 30.0, 60.0, 80.0, 85.0])
-    ggx_albedo = albedo(MODELS["ggx"], p, theta, n=128)
-    mrm_albedo = albedo(MODELS["mrm"], p, theta, n=97)          # another grid: agreement is not by symmetry
-    np.testing.assert_allclose(mrm_albedo, ggx_albedo, atol=1e-3)
-    np.testing.assert_allclose(albedo(MODELS["mrm_diffuse"], {"kd": 0.3, **p}, theta, n=97),
-                               0.3 + mrm_albedo, atol=1e-12)
-
-
-# --- where the lobes are ----------------------------------------------------------------------
-
-def test_mrm_peaks_at_retroreflection_and_ggx_at_the_mirror():
-    p = {"roughness": 0.23, "f0": 0.19}
-    t = np.arange(-89.0, 89.01, 0.25)                          # signed θo in the plane of incidence
-    wo = d(np.abs(t), np.where(t >= 0, 0.0, 180.0))
-    for theta_i in (0.0, 20.0, 40.0):                          # beyond, 1/cos θo moves the maximum to grazing
-        wi = d(theta_i, 0.0)
-        assert t[np.argmax(MODELS["ggx"](wi, wo, p))] == pytest.approx(-theta_i, abs=3.5)
-        assert t[np.argmax(MODELS["mrm"](wi, wo, p))] == pytest.approx(theta_i, abs=3.5)
-    for theta_i in (20.0, 40.0, 60.0, 80.0):
-        wi = d(theta_i, 0.0)
-        retro, mirror = wi, mirror_about_normal(wi)
-        assert MODELS["mrm"](wi, retro, p) > 5 * MODELS["mrm"](wi, mirror, p)
-        assert MODELS["ggx"](wi, mirror, p) > 5 * MODELS["ggx"](wi, retro, p)
-
-
-# --- finiteness and the horizon -----------------------------------------------------------------
-
-def _param_strategy(m):
-    def one(name):
-        lo, hi = m.bounds[name]
-        if name in m.log_scale:
-            return st.floats(np.log(lo), np.log(hi)).map(lambda x: float(np.clip(np.exp(x), lo, hi)))
-        return st.floats(lo, hi)
-    return st.fixed_dictionaries({name: one(name) for name in m.param_names})
-
-
-def _direction(cos_t, phi):
-    s = np.sqrt(max(0.0, 1.0 - cos_t**2))
-    return np.array([s * np.cos(phi), s * np.sin(phi), cos_t])
-
-
-SPECIAL_COS = [0.0, 5e-324, 1e-300, 1e-12, 1e-6, 1.0, -1e-300, -0.3, -1.0]
-cosines = st.one_of(st.sampled_from(SPECIAL_COS), st.floats(-1.0, 1.0))
-relations = st.sampled_from(["free", "retro", "mirror", "opposite"])
-
-
-@pytest.mark.parametrize("name", sorted(MODELS))
-@settings(max_examples=60, deadline=None)
-@given(data=st.data(), ci=cosines, co=cosines, phi_i=st.floats(0, 2 * np.pi), phi_o=st.floats(0, 2 * np.pi),
-       relation=relations)
-def test_finite_everywhere_and_zero_below_horizon(name, data, ci, co, phi_i, phi_o, relation):
-    m = MODELS[name]
-    p = data.draw(_param_strategy(m))
-    wi = _direction(ci, phi_i)
-    wo = {"free": _direction(co, phi_o), "retro": wi, "mirror": mirror_about_normal(wi), "opposite": -wi}[relation]
-    f = np.asarray(m(wi, wo, p))
-    assert np.isfinite(f) and f >= 0
-    if wi[2] <= 0 or wo[2] <= 0:
-        assert f == 0
-
-
-@pytest.mark.parametrize("name", sorted(MODELS))
-def test_finite_at_the_corners_of_the_bounds(name):
-    """Every combination of bound values at normal, retro, mirror and both-grazing geometries."""
-    m = MODELS[name]
-    wi = np.array([[0, 0, 1.0], d(89.9999, 0), d(60, 0), [1.0, 0, 1e-300]])
-    wo = np.stack([wi, mirror_about_normal(wi), d([89.9999] * 4, [180, 0, 90, 180])], axis=1)
-    for corner in itertools.product(*m.bounds.values()):
-        f = m(wi[:, None, :], wo, dict(zip(m.param_names, corner)))
-        assert f.shape == (4, 3) and np.all(np.isfinite(f)) and np.all(f >= 0), corner

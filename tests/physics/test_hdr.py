@@ -92,7 +92,8 @@ def test_saturated_samples_are_excluded():
     merged = merge_exposures(raw, darks, times, SENSOR)
     assert merged.saturated.all() and np.all(merged.n_used == 2) and not merged.clipped.any()
     truth = rate_e_s * SENSOR.gain_dn_per_e
-    assert abs(merged.rate_dn_s.mean() / truth - 1) < 4 * np.sqrt(merged.var_rate.mean() / merged.rate_dn_s.size) / truth
+    assert (abs(merged.rate_dn_s.mean() / truth - 1)
+            < 4 * np.sqrt(merged.var_rate.mean() / merged.rate_dn_s.size) / truth)
     assert merged.rate_dn_s.var(ddof=1) / merged.var_rate.mean() == pytest.approx(1.0, abs=0.04)
 
 

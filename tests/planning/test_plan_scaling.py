@@ -56,7 +56,8 @@ def moves_evaluated(monkeypatch, fn: Callable[..., Any], *args: Any) -> tuple[in
 
 
 def lines_run(fn: Callable[..., Any], *args: Any) -> tuple[int, Any]:
-    """Number of Python lines run in rig/planning/plan.py and rig/planning/ordering.py in fn(*args), and what it returns."""
+    """Number of Python lines run in rig/planning/plan.py and rig/planning/ordering.py in fn(*args), and what it
+    returns."""
     files = {str(Path(module.__file__)) for module in (plan, ordering)}
     count = 0
 
@@ -208,4 +209,4 @@ def test_plan_of_more_series_than_a_block_keeps_every_point_and_beats_table_orde
     runs = [s for k, s in enumerate(p.series for p in optimised.points)
             if k == 0 or s != optimised.points[k - 1].series]
     assert runs == [s.index for s in optimised.series][:len(runs)] and len(set(runs)) == len(runs)
-    assert plan.estimate_rig_time_s(optimised, RIG, 0.0) < plan.estimate_rig_time_s(table, RIG, 0.0)
+    assert plan.estimate_rig_time_s(optimised, RIG.axes, 0.0) < plan.estimate_rig_time_s(table, RIG.axes, 0.0)

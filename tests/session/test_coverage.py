@@ -8,12 +8,12 @@ independent simulated rigs (seeds): RetroPhong RM1 and the steep RM3 (n = 68), Î
 
 import numpy as np
 import pytest
-from repo_paths import TEST_CAMPAIGNS as CAMPAIGNS
 
+from repo_paths import TEST_CAMPAIGNS as CAMPAIGNS
 from rig.acquisition.execute import execute
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig, SimulationConfig
-from rig.data.dataset import load
+from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
@@ -25,7 +25,8 @@ def errors(tmp_path, name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     campaign = load_campaign(CAMPAIGNS / name)
     rig = RigConfig(simulation=SimulationConfig(seed=seed))
     out = tmp_path / f"{name}-{seed}"
-    assert execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig)).status == "complete"
+    outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+    assert outcome.status == "complete"
     d = load(out)
     truth_spec = campaign.sample.simulated_brdf
     wi, wo = d.directions()

@@ -12,7 +12,8 @@ import pytest
 from rig.acquisition.execute import execute
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import BRDF_COLUMNS, load
+from rig.data.dataset_format import BRDF_COLUMNS
+from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig

@@ -4,11 +4,10 @@ holds exactly the fault-free run's points, values within uncertainty, nothing lo
 
 
 from repo_paths import E2E_CAMPAIGN as CAMPAIGN
-from rig.simulators.faults import FaultSchedule
-
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.session.soak import compare, run_fault_free, run_with_faults
+from rig.simulators.faults import FaultSchedule
 
 
 def test_soak_reduced(tmp_path):

@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from rig.simulators.clock import SimClock
-from rig.simulators.lamp import LampPhysics
 
 from rig.config.rigfile import SimulationConfig
+from rig.simulators.clock import SimClock
+from rig.simulators.lamp import LampPhysics
 
 NOMINAL_A = 4.17
 SIM = SimulationConfig()
@@ -135,10 +135,9 @@ def test_burn_out_opens_the_filament_and_replacement_restores_it(clock):
 
 def test_world_lamp_keeps_the_interface_of_the_camera_and_meter():
     """SimWorld builds it from the configuration; without a supply limit nothing changes for the light."""
-    from rig.simulators.world import SimWorld
-
     from rig.config.rigfile import RigConfig
     from rig.physics.brdf_models import get_model
+    from rig.simulators.world import SimWorld
 
     world = SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5})
     world.lamp.set_current(4.17, 0)

@@ -5,17 +5,17 @@ The camera's speed is a benchmark (benchmarks/hot_paths.py), not a test.
 
 import numpy as np
 import pytest
-from rig.simulators.axis_model import AxisModel
-from rig.simulators.camera import SimCamera
-from rig.simulators.sensor import SensorModel, digitise, electrons
-from rig.simulators.texture import GlintTexture, ValueNoiseTexture
-from rig.simulators.world import SimWorld
 
 from rig.config.rigfile import CameraConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError
 from rig.core.values import Window
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import AXIS_NAMES, directions_scs, forward_deg, inverse_deg
+from rig.simulators.axis_model import AxisModel
+from rig.simulators.camera import SimCamera
+from rig.simulators.sensor import SensorModel, digitise, electrons
+from rig.simulators.texture import GlintTexture, ValueNoiseTexture
+from rig.simulators.world import SimWorld
 
 #: Settings that remove every random or drifting effect except shot noise.
 QUIET = dict(texture_contrast=0.0, glint_contrast=0.0, prnu_rel=0.0, dsnu_e_s=0.0, dark_current_e_s=0.0,

@@ -1,0 +1,70 @@
+"""The engine's moves: stage and arm together, never through a forbidden zone, with a timeout.
+
+Motor positions are (stage_vertical, stage_normal, arm_azimuth, arm_polar) in degrees, the
+order of the plan and of brdf.csv. Both positioners start before either is waited for, so
+the four axes run at once; a move may be started and waited for later (the engine starts
+the move to the next point before merging the frames of this one).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rig.config.rigfile import RigConfig
+from rig.drivers.interfaces import RigDevices
+from rig.planning.collisions import path_crosses, zones_of
+from rig.planning.ordering import travel_time_s
+
+Motors = tuple[float, float, float, float]
+
+
+class CollisionError(RuntimeError):
+    """A move would cross a forbidden zone of the rig configuration; nothing moved."""
+
+
+class Mover:
+    """Where the axes are (as far as the engine knows) and the move under way, if any."""
+
+    #: Moves may take this much longer than predicted before the axis counts as stuck.
+    MOVE_TIMEOUT_FACTOR = 2.0
+    MOVE_TIMEOUT_MARGIN_S = 10.0
+
+    def __init__(self, devices: RigDevices, rig: RigConfig):
+        self.dev = devices
+        self.rig = rig
+        self.position: Motors = self.read_back()
+        self.moving_to: Motors | None = None     # target of a move started and not yet waited for
+
+    def read_back(self) -> Motors:
+        """The encoders' positions, the values the dataset records."""
+        stage, arm = self.dev.stage.positions_deg(), self.dev.arm.positions_deg()
+        return stage[0], stage[1], arm[0], arm[1]
+
+    def resync(self) -> None:
+        """Take the read-back as the position (after a device error left it unknown)."""
+        self.position = self.read_back()
+
+    def start(self, target: Motors) -> None:
+        """Start all four axes together toward `target`, never through a forbidden zone.
+
+        The planner already routes around the zones; this guards the moves it did not
+        plan: the first one of a resume, a retry's, the park.
+        """
+        if self.moving_to is not None:          # interrupted on its way: where is it now?
+            self.resync()
+        zone = path_crosses(self.position, target, zones_of(self.rig), self.rig.axes)
+        if zone is not None:
+            raise CollisionError(f"move from {self.position} to {target} (deg) would cross forbidden zone {zone!r}")
+        self.dev.stage.start_move(target[0], target[1])
+        self.dev.arm.start_move(target[2], target[3])
+        self.moving_to = target
+
+    def move(self, target: Motors) -> None:
+        """Be at `target`: wait for the move already under way there, else start one, then wait."""
+        if self.moving_to != target:
+            self.start(target)
+        predicted_s = float(travel_time_s(self.rig.axes, np.asarray(self.position, float), np.asarray(target, float)))
+        timeout_s = self.MOVE_TIMEOUT_FACTOR * predicted_s + self.MOVE_TIMEOUT_MARGIN_S
+        self.dev.stage.wait(timeout_s)
+        self.dev.arm.wait(timeout_s)
+        self.position, self.moving_to = target, None

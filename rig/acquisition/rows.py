@@ -1,0 +1,89 @@
+"""brdf.csv rows from measurements and E⊥ (pure: no device, no file).
+
+A point is measured before the E⊥ reading that closes its interval is taken, so the
+engine keeps a `Measurement` and turns it into a row once it knows which E⊥ the point
+gets: the last reading alone, or one interpolated between the readings that bracket it
+(`drift_corrected`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from rig.acquisition.capture import PointCapture
+from rig.physics import geometry as geo
+from rig.physics.budget import point_budget
+from rig.physics.illuminance import IlluminanceEstimate, interpolate
+from rig.physics.pipeline import brdf_from_luminance
+from rig.planning.points import PlannedPoint
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Everything measured at one point, before E⊥ turns it into a BRDF row."""
+
+    point: PlannedPoint
+    motors_deg: tuple[float, float, float, float]
+    angles: geo.BrdfAngles
+    capture: PointCapture
+    flags: tuple[str, ...]
+    time_utc: str
+    rig_time_s: float
+
+
+@dataclass(frozen=True)
+class RowConstants:
+    """What a row needs besides the measurement and its E⊥: fixed for a run."""
+
+    angle_u_deg: float            # standard uncertainty of the incidence angle
+    grazing_limit_deg: float      # θi from which a point is flagged grazing_incidence
+    calibration_u_rel: float      # relative uncertainty of the camera's luminance calibration
+
+
+def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float,
+             constants: RowConstants) -> dict[str, Any]:
+    """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift)."""
+    cap, theta_i = m.capture, float(m.angles.theta_i_deg)
+    res = brdf_from_luminance(cap.luminance_cd_m2, cap.u_luminance_cd_m2, e_perp_lx, u_e_perp_lx,
+                              theta_i, constants.angle_u_deg, grazing_limit_deg=constants.grazing_limit_deg)
+    flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
+    budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=cap.u_luminance_cd_m2,
+                          u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
+                          u_texture_cd_m2=cap.u_texture_cd_m2, calibration_u_rel=constants.calibration_u_rel,
+                          e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,
+                          theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg)
+    return {
+        "point_id": m.point.point_id, "series": m.point.series,
+        "theta_i_deg": theta_i, "phi_i_deg": float(m.angles.phi_i_deg),
+        "theta_o_deg": float(m.angles.theta_o_deg), "phi_o_deg": float(m.angles.phi_o_deg),
+        "brdf_per_sr": float(res.brdf_per_sr), "u_brdf_per_sr": float(res.u_brdf_per_sr),
+        "luminance_cd_m2": cap.luminance_cd_m2, "u_luminance_cd_m2": cap.u_luminance_cd_m2,
+        "illuminance_lx": float(res.illuminance_lx), "illuminance_normal_lx": e_perp_lx,
+        "stage_vertical_deg": m.motors_deg[0], "stage_normal_deg": m.motors_deg[1],
+        "arm_azimuth_deg": m.motors_deg[2], "arm_polar_deg": m.motors_deg[3],
+        "exposures_s": list(cap.exposures_s), "saturated_fraction": cap.saturated_fraction,
+        "flags": ";".join(dict.fromkeys(flags)), "time_utc": m.time_utc, "rig_time_s": m.rig_time_s,
+        "u_illuminance_normal_lx": u_e_perp_lx, "roi_std_cd_m2": cap.roi_std_cd_m2,
+        "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s, **budget,
+    }
+
+
+def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:
+    """The row with the E⊥ of the last reading, uncorrected (no drift part)."""
+    return brdf_row(m, reading.value_lx, reading.u_lx, 0.0, constants)
+
+
+def bracketed_rows(measurements: Sequence[Measurement], before: IlluminanceEstimate,
+                   after: IlluminanceEstimate | None, constants: RowConstants) -> list[dict[str, Any]]:
+    """Rows of the points measured between two readings, E⊥ interpolated in rig time between them
+    (flag `drift_corrected`); without `after` (no closing reading) each keeps `before`'s E⊥."""
+    if after is None:
+        return [latest_row(m, before, constants) for m in measurements]
+    e = interpolate(before, after, np.array([m.rig_time_s for m in measurements]))
+    return [brdf_row(replace(m, flags=m.flags + ("drift_corrected",)),
+                     float(e.value_lx[k]), float(e.u_lx[k]), float(e.u_drift_lx[k]), constants)
+            for k, m in enumerate(measurements)]

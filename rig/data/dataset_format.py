@@ -1,0 +1,74 @@
+"""The dataset folder's contract (docs/dataset.md): format name, brdf.csv and skipped.csv columns, units.
+
+One place for the names that the writer, the readers, the importer and the tests must agree on.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from rig.physics.budget import BUDGET_COLUMNS
+
+FORMAT = "rig-brdf-dataset"
+FORMAT_VERSION = "1.0"
+#: The manifest's pointer to the angle conventions: a document that ships with rig.
+CONVENTIONS = "docs/geometry.md of rig (angle conventions, degrees, phi in [0, 360))"
+
+#: The contract's columns of brdf.csv (docs/dataset.md): every reader needs them, in any order.
+CONTRACT_COLUMNS = (
+    "point_id", "series", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg",
+    "brdf_per_sr", "u_brdf_per_sr", "luminance_cd_m2", "u_luminance_cd_m2",
+    "illuminance_lx", "illuminance_normal_lx",
+    "stage_vertical_deg", "stage_normal_deg", "arm_azimuth_deg", "arm_polar_deg",
+    "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
+)
+#: Columns after the contract's: capture details and the relative uncertainty budget (k = 1, rig/physics/budget.py).
+PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", *BUDGET_COLUMNS)
+#: brdf.csv as rig writes it.
+BRDF_COLUMNS = CONTRACT_COLUMNS + PROJECT_COLUMNS
+SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
+
+
+class DatasetError(RuntimeError):
+    """The output folder cannot be used, or a dataset folder cannot be read; the message names it."""
+
+
+class DiskFullError(DatasetError):
+    """A write ran out of space (ENOSPC, EDQUOT); the message names the folder and the space needed."""
+
+
+#: Units of the brdf.csv columns, for notebooks and exporters.
+UNITS = {
+    "theta_i_deg": "deg", "phi_i_deg": "deg", "theta_o_deg": "deg", "phi_o_deg": "deg",
+    "brdf_per_sr": "1/sr", "u_brdf_per_sr": "1/sr", "luminance_cd_m2": "cd/m2", "u_luminance_cd_m2": "cd/m2",
+    "illuminance_lx": "lx", "illuminance_normal_lx": "lx", "u_illuminance_normal_lx": "lx",
+    "stage_vertical_deg": "deg", "stage_normal_deg": "deg", "arm_azimuth_deg": "deg", "arm_polar_deg": "deg",
+    "exposures_s": "s", "saturated_fraction": "1", "rig_time_s": "s", "roi_std_cd_m2": "cd/m2",
+    "capture_time_s": "s", **dict.fromkeys(BUDGET_COLUMNS, "1"),
+}
+#: brdf.csv columns that are not numbers.
+TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}
+
+
+def _cell(value: Any) -> str:
+    """A csv cell: floats at full precision (repr reads back exactly), lists `;`-joined, never NaN or inf."""
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(value):
+            raise ValueError(f"refusing to write a non-finite number ({value})")
+        return repr(float(value))
+    if isinstance(value, (list, tuple)):
+        return ";".join(_cell(v) for v in value)
+    return str(value)
+
+
+def csv_line(values: Iterable[Any]) -> str:
+    """One line of brdf.csv or skipped.csv, newline included."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([_cell(v) for v in values])
+    return buf.getvalue()

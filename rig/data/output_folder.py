@@ -1,0 +1,92 @@
+"""A new output folder: never written over, removed when the command that makes it fails; its size on disk."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from rig.data.dataset_format import DatasetError
+from rig.data.folderlock import LOCK_NAME
+
+#: Bytes set aside in `.reserve` when a writer opens a folder, freed when the disk fills so that
+#: the final events and the manifest (about 10 kB, written twice by the atomic replace) still fit.
+RESERVE_BYTES = 64 * 1024
+RESERVE_NAME = ".reserve"
+
+
+def require_new_output(path: Path, hint: str = "choose another --out, or continue it with --resume") -> None:
+    """DatasetError unless `path` is absent or an empty folder: rig never writes over anything."""
+    if not path.exists():
+        return
+    if not path.is_dir():
+        raise DatasetError(f"output {path} exists and is not a folder; choose another --out "
+                           "(nothing was overwritten)")
+    try:
+        occupied = any(p.name != LOCK_NAME for p in path.iterdir())
+    except OSError as exc:
+        raise DatasetError(f"output folder {path} cannot be read: {exc.strerror or exc}") from None
+    if occupied:
+        raise DatasetError(f"output folder {path} already exists and is not empty; {hint} (nothing was overwritten)")
+
+
+@contextmanager
+def removed_on_failure(path: Path) -> Iterator[Path]:
+    """Run the body that writes the new output `path`; if it fails, remove what it wrote, so a
+    refused or failed command leaves nothing behind. `path` must be absent or an empty folder."""
+    existed = path.exists()
+    try:
+        yield path
+    except BaseException:
+        if not existed and path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        elif not existed:
+            path.unlink(missing_ok=True)
+        elif path.is_dir():
+            for child in path.iterdir():
+                if child.is_dir():
+                    shutil.rmtree(child, ignore_errors=True)
+                else:
+                    child.unlink(missing_ok=True)
+        raise
+
+
+def format_bytes(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if abs(n) < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1000
+    raise AssertionError("unreachable")
+
+
+def folder_size(folder: Path) -> int:
+    """Bytes in the files of `folder` and its sub-folders (images/), the lock and the reserve left out."""
+    total = 0
+    for root, _, files in os.walk(folder):
+        for name in files:
+            if name not in (LOCK_NAME, RESERVE_NAME):
+                try:
+                    total += os.stat(os.path.join(root, name)).st_size
+                except OSError:
+                    pass
+    return total
+
+
+def first_missing(path: Path) -> Path | None:
+    """The outermost folder of `path` that does not exist yet (what mkdir(parents=True) creates)."""
+    missing = None
+    for p in (path, *path.parents):
+        if p.exists():
+            break
+        missing = p
+    return missing
+
+
+def existing_parent(path: Path) -> Path:
+    """`path` or its nearest existing parent (where free space is measured before a folder exists)."""
+    for p in (path, *path.absolute().parents):
+        if p.exists():
+            return p
+    return Path("/")

@@ -1,0 +1,234 @@
+"""Delta SM lamp-supply driver against its protocol peer over loopback TCP, with every fault; and the
+peer's SCPI parser.
+
+pyserial's `socket://` close sleeps 0.3 s of wall time, so the peer tests
+share one peer and one connected driver (reset before each test) and the
+fault tests wait at most a 0.2 s timeout per lost reply.
+"""
+
+import threading
+from itertools import pairwise
+
+import pytest
+
+from rig.config.rigfile import RigConfig
+from rig.core.errors import DeviceError
+from rig.drivers.delta_sm import DeltaSM
+from rig.drivers.retry import RetryPolicy
+from rig.physics.brdf_models import get_model
+from rig.simulators.delta_sm_peer import DeltaSMPeer
+from rig.simulators.world import SimWorld
+
+FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
+ATTEMPTS = 2
+
+
+@pytest.fixture(scope="module", autouse=True)
+def no_leaked_threads():
+    before = set(threading.enumerate())
+    yield
+    assert set(threading.enumerate()) <= before
+
+
+@pytest.fixture(scope="module")
+def world() -> SimWorld:
+    return SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5})
+
+
+@pytest.fixture(scope="module")
+def peer(world):
+    with DeltaSMPeer(world) as peer:
+        yield peer
+
+
+@pytest.fixture(scope="module")
+def shared_lamp(peer, world):
+    lamp = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, retry=RetryPolicy(attempts=ATTEMPTS))
+    yield lamp
+    lamp.close()
+
+
+@pytest.fixture
+def events() -> list[tuple[str, dict]]:
+    return []
+
+
+def ask(peer: DeltaSMPeer, *lines: str) -> list[str | None]:
+    return [peer.answer(line.encode("ascii")) for line in lines]
+
+
+@pytest.fixture
+def lamp(shared_lamp, peer, world, events):
+    """The shared driver on a supply reset to its state after connect, with a new, cold lamp."""
+    ask(peer, "*RST", "*CLS", "SYST:REM:CV REM", "SYST:REM:CC REM", f"SOUR:VOLT {peer.max_voltage_v}")
+    world.lamp.replace()
+    shared_lamp.events = lambda kind, **fields: events.append((kind, fields))
+    return shared_lamp
+
+
+def test_peer_identity_remote_hand_over_and_close(lamp, peer, world):
+    assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-10,SIM0001,sim-1.0"
+    ask(peer, "SYST:REM:CV LOC", "SYST:REM:CC LOC", "SOUR:VOLT 0")
+    second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST)
+    assert peer.remote == {"CV": True, "CC": True}
+    assert peer.voltage_v == peer.max_voltage_v            # the current setpoint rules
+    second.set_output(True)
+    second.close()
+    assert peer.remote == {"CV": False, "CC": False}       # front panel again...
+    assert peer.output_on                                  # ...and the output left as it was
+
+
+def test_constant_current_ramp_has_no_overshoot_and_warms_the_filament(lamp, world, monkeypatch):
+    setpoints = []
+    program = world.lamp.set_current
+    monkeypatch.setattr(world.lamp, "set_current",
+                        lambda i, ramp_s=0.0: (setpoints.append((world.clock.now(), i)), program(i, ramp_s)))
+    lamp.set_current(0.0)
+    lamp.set_output(True)
+    t0 = world.clock.now()
+    lamp.set_current(4.17, ramp_s=5.0)
+    assert world.clock.now() - t0 == pytest.approx(5.0)
+    times, currents = zip(*setpoints[1:])
+    assert len(currents) == 50 and currents[-1] == pytest.approx(4.17, abs=1e-12)
+    assert max(currents) == pytest.approx(4.17, abs=1e-12)                  # no overshoot
+    assert all(b >= a for a, b in pairwise(currents))
+    assert [t - t0 for t in times] == pytest.approx([0.1 * k for k in range(1, 51)])
+    world.clock.sleep(2.0)
+    current, voltage = lamp.measure_current_a(), lamp.measure_voltage_v()
+    assert current == pytest.approx(4.17, abs=1e-12)
+    assert voltage == pytest.approx(12.0, abs=1e-4)        # hot filament: rated voltage at nominal current
+    assert voltage / current == pytest.approx(world.lamp.resistance_ohm(), abs=1e-4)
+
+
+def test_output_on_off_and_measurements_follow_the_filament(lamp, world):
+    lamp.set_current(4.17)
+    assert lamp.output_is_on() is False
+    assert (lamp.measure_current_a(), lamp.measure_voltage_v()) == (0.0, 0.0)
+    lamp.set_output(True)                                  # switching on cold at full current: inrush
+    assert lamp.output_is_on() is True
+    assert lamp.measure_voltage_v() == pytest.approx(4.17 * world.lamp.cold_resistance_ohm, abs=1e-4)
+    world.clock.sleep(0.15)
+    assert 1.3 < lamp.measure_voltage_v() < 12.0           # heating up: the voltage transient
+    lamp.set_output(False)
+    assert lamp.output_is_on() is False and world.lamp.relative_output() == 0.0
+
+
+@pytest.mark.parametrize("fault", ["no_reply", "garbled", "short", "disconnect"])
+def test_transient_fault_is_retried_after_a_reconnect(lamp, peer, events, fault):
+    lamp.set_current(4.17)
+    lamp.set_output(True)
+    peer.inject(fault)
+    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
+    assert [kind for kind, _ in events] == ["retry", "reconnect"]
+    assert events[0][1]["what"] == "MEASure:CURrent?"
+
+
+@pytest.mark.parametrize("fault, answer", [("no_reply", "got b'')"), ("garbled", "garbled reply"),
+                                           ("short", "got b'4.1')"), ("disconnect", "connection lost")])
+def test_persistent_fault_names_device_command_and_answer(lamp, peer, fault, answer):
+    lamp.set_current(4.17)
+    lamp.set_output(True)
+    peer.inject(fault, count=ATTEMPTS)
+    with pytest.raises(DeviceError) as err:
+        lamp.measure_current_a()
+    message = str(err.value)
+    assert not err.value.transient
+    assert message.startswith(f"lamp: MEASure:CURrent? failed {ATTEMPTS} times") and answer in message
+
+
+def test_a_fault_after_a_setting_resends_it(lamp, peer, events):
+    peer.inject("garbled")                                 # hits the error read after the setting
+    lamp.set_current(2.5)
+    assert peer.current_a == 2.5
+    assert events[0][1]["what"] == "SOURce:CURrent 2.5"
+
+
+def test_error_queue_entry_is_a_persistent_refusal(lamp, peer, events):
+    peer.inject("error_queue")
+    with pytest.raises(DeviceError) as err:
+        lamp.set_output(True)
+    assert not err.value.transient and events == []
+    assert str(err.value) == "lamp: 'OUTPut ON' refused: -300,Device-specific error"
+    lamp.set_output(True)                                  # the queue was drained
+    assert peer.output_on
+
+
+@pytest.mark.parametrize("current_a", [-0.5, 10.5])
+def test_unreachable_current_is_refused_before_the_ramp_starts(lamp, peer, world, current_a):
+    t0 = world.clock.now()
+    with pytest.raises(DeviceError, match=r"current .* A outside the supply's 0 … 10 A"):
+        lamp.set_current(current_a, ramp_s=5.0)
+    assert peer.current_a == 0.0 and world.clock.now() == t0
+
+
+def test_out_of_range_setting_is_refused_by_the_supply(lamp, monkeypatch):
+    monkeypatch.setattr(lamp, "max_current_a", 20.0)       # a driver that believed a larger supply
+    with pytest.raises(DeviceError, match=r"'SOURce:CURrent 12' refused: -222,Data out of range"):
+        lamp.set_current(12.0)
+
+
+def test_burn_out_shows_as_no_current_at_the_voltage_limit(lamp, peer, world):
+    lamp.set_current(4.17)
+    lamp.set_output(True)
+    peer.inject("burnout")
+    assert lamp.measure_current_a() == 0.0
+    assert lamp.measure_voltage_v() == peer.max_voltage_v
+    assert world.illuminance_normal_lx() == 0.0
+    world.lamp.replace()
+    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
+
+
+def test_switching_off_is_confirmed_by_read_back_despite_stale_errors(lamp, peer, events):
+    lamp.set_output(True)
+    peer.inject("error_queue", count=2)
+    lamp.set_output(False)
+    assert not peer.output_on
+    assert events == [("device_errors", {"device": "lamp", "what": "OUTPut OFF",
+                                         "errors": ["-300,Device-specific error"] * 2})]
+
+
+def test_switching_off_gets_more_attempts_than_other_commands(lamp, peer, events):
+    lamp.set_output(True)
+    for fault in ("no_reply", "disconnect", "garbled"):    # one more than ATTEMPTS
+        peer.inject(fault)
+    lamp.set_output(False)
+    assert not peer.output_on
+    assert [kind for kind, _ in events].count("retry") == 3
+
+
+# -- the peer's SCPI parser --------------------------------------------------------------------
+def test_peer_accepts_long_short_and_any_case(lamp, peer):
+    for line, value in (("SOUR:CURR 4.17", 4.17), ("source:current 2.5", 2.5), ("Sour:Cur 1", 1.0),
+                        (":SOURce:CURrent 3", 3.0)):
+        ask(peer, line)
+        assert peer.current_a == value
+    assert ask(peer, "MEAS:VOLT?", "meas:curr?", "SOUR:CURR?", "outp?", "*idn?", "syst:rem:cv?", "SYST:ERR?") == \
+        ["0.0000", "0.0000", "3.0000", "0", peer.identity, "REMote", "0,None"]
+
+
+def test_peer_queues_scpi_errors(lamp, peer):
+    ask(peer, "SYST:REM:CC LOC")
+    assert ask(peer, "VOLT 3", "SOUR:CURR 1", "SYST:REM:CC REM", "SOUR:CURR 11", "SOUR:CURR abc", "OUTP maybe",
+               "MEAS:CURR? 2", "SOUR:CURR", "MEAS:VOLT") == [None] * 9
+    assert ask(peer, *["SYST:ERR?"] * 9) == [
+        "-113,Undefined header", "-221,Settings conflict", "-222,Data out of range", "-104,Data type error",
+        "-224,Illegal parameter value", "-108,Parameter not allowed", "-109,Missing parameter",
+        "-113,Undefined header", "0,None"]
+    assert peer.current_a == 0.0
+
+
+def test_peer_error_queue_holds_ten_entries_and_reports_overflow(lamp, peer):
+    ask(peer, *["BOGUS"] * 12)
+    assert ask(peer, *["SYST:ERR?"] * 11) == ["-113,Undefined header"] * 9 + ["-350,Queue overflow", "0,None"]
+    peer.inject("error_queue")
+    ask(peer, "*CLS")
+    assert ask(peer, "SYST:ERR?") == ["0,None"]
+
+
+def test_peer_stop_is_idempotent_and_refuses_unknown_faults():
+    peer = DeltaSMPeer(SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}))
+    with pytest.raises(ValueError, match="unknown fault"):
+        peer.inject("fire")
+    assert peer.start().startswith("socket://127.0.0.1:")
+    peer.stop()
+    peer.stop()
