@@ -1,32 +1,62 @@
-"""Delta Elektronika SM-series DC supply (SCPI over the PSC-ETH module or a serial port) as the lamp supply.
+"""Delta Elektronika SM15K (built-in Ethernet) or SM-series supply with a PSC-ETH module, as the lamp supply.
+
+The commands are those of the manual "Ethernet & Sequencer Programming SM15K"
+(rev. July 2021): raw TCP on port 8462, one LF-terminated line per command,
+replies only to queries. The older PSC-232 / SM-D dialects are not supported.
 
 The lamp runs in constant-current mode: on connect the driver takes over both
-setpoints from the front panel (remote hand-over) and sets the voltage limit to
-the supply's maximum, or a configured compliance, so the current setpoint
-rules. Current changes are ramped in steps on the rig clock, because a cold
-filament has about a tenth of its hot resistance (inrush).
+setpoints from the front panel (remote hand-over), sets the supply's own
+current limit from the rig file (so no setpoint, ours or the front panel's,
+can exceed it) and the voltage setpoint to the supply's maximum, or a
+configured compliance, so the current setpoint rules. Current changes are
+ramped in steps on the rig clock, because a cold filament has about a tenth of
+its hot resistance (inrush). Every number goes out as a plain decimal with
+the read-back's four digits (`SOURce:CURrent 4.1700`), never with an exponent.
+
+Last on connect the supply's communication watchdog is armed for the whole
+session: if no command reaches it for `watchdog_s` (a killed process, a dead
+PC, a cut cable) the supply switches its output off by itself. A keep-alive on
+the rig clock feeds it during long waits; `close()` disarms it at a clean end.
 
 Every setting is followed by a read of the error queue: an entry is a refusal
-(persistent DeviceError naming the command and the entry). A setting and its
-error read are retried together after a transient fault; settings are
-absolute, so sending one twice is harmless.
+(persistent DeviceError naming the command and the entry). The manual
+publishes no list of error codes, so only "0 = no error" is relied on. A
+setting and its error read are retried together after a transient fault;
+settings are absolute, so sending one twice is harmless.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.interfaces import LampSupply
 from rig.drivers.line_instrument import LineInstrument, Query, Setting, choice, number
-from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
+from rig.drivers.retry import DEFAULT_RETRY, EventSink, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
 ERROR_QUEUE_SIZE = 10
 #: Switching off is the safety action: it gets at least this many attempts.
 OFF_ATTEMPTS = 6
+#: The current ramp before `OUTPut OFF` lasts at most this long, however slow the warm-up ramp is.
+OFF_RAMP_MAX_S = 2.0
+#: Switched off means a measured current below the larger of these (A, and a fraction of the current limit).
+OFF_CURRENT_A = 0.01
+OFF_CURRENT_REL = 0.01
+#: Feeds per watchdog period: one late or lost feed does not let the watchdog expire.
+FEEDS_PER_PERIOD = 4
+#: The watchdog's range (manual §5.6.10), ms.
+WATCHDOG_MIN_MS, WATCHDOG_MAX_MS = 20, 10000
+MAKER = "DELTA ELEKTRONIKA"
+
+
+def plain(value: float) -> str:
+    """<NR2> as the manual writes it: a plain decimal with four digits, never `1e-05`, never `-0.0000`."""
+    return f"{round(value, 4) + 0.0:.4f}"
 
 
 def _error_entry(reply: str) -> tuple[int, str]:
@@ -37,6 +67,12 @@ def _error_entry(reply: str) -> tuple[int, str]:
     return int(code), reply
 
 
+def _limit(reply: str) -> float:
+    """`SYSTem:LIMits:CURrent?`: the manual does not publish the reply's format; take the leading number
+    (a trailing `,ON` or `,1` is allowed)."""
+    return float(reply.partition(",")[0])
+
+
 # -- the command table (long forms, as the manual recommends) ------------------------------------
 IDENTITY = Query("*IDN?", str)
 CLEAR_STATUS = Setting("*CLS")
@@ -44,8 +80,10 @@ REMOTE_CV = Setting("SYSTem:REMote:CV {}")          # REMote | LOCal: who progra
 REMOTE_CC = Setting("SYSTem:REMote:CC {}")          # ... and the current
 MAX_CURRENT = Query("SOURce:CURrent:MAXimum?", number, "A")
 MAX_VOLTAGE = Query("SOURce:VOLtage:MAXimum?", number, "V")
-VOLTAGE = Setting("SOURce:VOLtage {:.6g}", "V")
-CURRENT = Setting("SOURce:CURrent {:.6g}", "A")
+CURRENT_LIMIT = Setting("SYSTem:LIMits:CURrent {},ON", "A")   # <NR2>,<boolean>: ON = limit enabled
+CURRENT_LIMIT_VALUE = Query("SYSTem:LIMits:CURrent?", _limit, "A")
+VOLTAGE = Setting("SOURce:VOLtage {}", "V")
+CURRENT = Setting("SOURce:CURrent {}", "A")
 CURRENT_SETPOINT = Query("SOURce:CURrent?", number, "A")
 OUTPUT = Setting("OUTPut {}")                        # ON | OFF
 #: `OUTPut?` answers 1/0 (ON/OFF on some firmware).
@@ -53,33 +91,94 @@ OUTPUT_STATE = Query("OUTPut?", choice({"1": True, "ON": True, "0": False, "OFF"
 MEASURED_CURRENT = Query("MEASure:CURrent?", number, "A")
 MEASURED_VOLTAGE = Query("MEASure:VOLtage?", number, "V")
 ERROR = Query("SYSTem:ERRor?", _error_entry)
+WATCHDOG_ARM = Setting("SYSTem:COMmunicate:WATchdog SET,{:d}", "ms")
+WATCHDOG_STOP = Setting("SYSTem:COMmunicate:WATchdog STOP")
+#: Remaining ms while armed (the query, a valid command, also restarts it); 0: it had expired; -1: off.
+WATCHDOG_STATE = Query("SYSTem:COMmunicate:WATchdog?", int, "ms")
 
 
 class DeltaSM(LineInstrument, LampSupply):
-    """`url`: `socket://host:8462` (PSC-ETH), a serial port or a pyserial URL.
+    """`url`: `socket://host:8462` (SM15K or PSC-ETH), or a pyserial URL.
 
-    `events(kind, **fields)` hears of retries, reconnects and errors met while
-    switching off; the runner points it at its log. `compliance_v` replaces
-    the supply's maximum voltage as the limit.
+    `current_a` is the rig's lamp current, `current_limit_a` the limit set in
+    the supply, `watchdog_s` the watchdog time, `ramp_s` the rig file's ramp
+    (the switch-off ramp is at most OFF_RAMP_MAX_S of it). `compliance_v`
+    replaces the supply's maximum voltage as the voltage setpoint.
+
+    `events(kind, **fields)` hears of retries, reconnects, watchdog trouble and
+    errors met while switching off; the runner points it at its log. Events of
+    the connection itself, before a sink is attached, are held and handed to
+    the first sink attached.
     """
 
-    def __init__(self, url: str, *, clock: Clock, name: str = "lamp", timeout_s: float = 1.0,
-                 retry: RetryPolicy = DEFAULT_RETRY, ramp_step_s: float = 0.1, compliance_v: float | None = None,
-                 open_port: PortOpener = open_pyserial):
+    def __init__(self, url: str, *, clock: Clock, current_a: float, current_limit_a: float, watchdog_s: float,
+                 ramp_s: float, name: str = "lamp", timeout_s: float = 1.0, retry: RetryPolicy = DEFAULT_RETRY,
+                 ramp_step_s: float = 0.1, compliance_v: float | None = None, open_port: PortOpener = open_pyserial):
         if ramp_step_s <= 0:
             raise ValueError(f"ramp_step_s must be positive, got {ramp_step_s}")
+        self.watchdog_ms = round(watchdog_s * 1000)
+        if not WATCHDOG_MIN_MS <= self.watchdog_ms <= WATCHDOG_MAX_MS:
+            raise ValueError(f"watchdog_s must be 0.02 … 10 s (the supply's range), got {watchdog_s}")
+        if not 0 < current_a <= current_limit_a:
+            raise DeviceError(name, f"lamp current {current_a:g} A exceeds the current limit {current_limit_a:g} A")
         super().__init__(url, name=name, clock=clock, timeout_s=timeout_s, retry=retry, open_port=open_port)
+        self._held: list[tuple[str, dict[str, Any]]] = []
+        self._sink: EventSink | None = None
         self.ramp_step_s = ramp_step_s
+        self.ramp_s = ramp_s
+        self.current_limit_a = current_limit_a
+        self._once = replace(retry, attempts=1)
         try:
-            self._identity = self.query(IDENTITY)
-            self._set(CLEAR_STATUS)                  # stale entries would be blamed on our first setting
-            self._set(REMOTE_CV, "REMote")
-            self._set(REMOTE_CC, "REMote")
-            self.max_current_a = self.query(MAX_CURRENT)
-            self._set(VOLTAGE, self.query(MAX_VOLTAGE) if compliance_v is None else compliance_v)
+            self._connect(current_a, compliance_v)
         except BaseException:
             self.link.close()
             raise
+        self._cancel_feed: Callable[[], None] | None = clock.keep_alive(
+            self.watchdog_ms / 1000 / FEEDS_PER_PERIOD, self._feed_watchdog)
+
+    def _connect(self, current_a: float, compliance_v: float | None) -> None:
+        identity = self.query(IDENTITY)
+        if MAKER not in identity.upper():
+            raise DeviceError(self.name, f"not a Delta Elektronika supply: '*IDN?' answered {identity!r}")
+        self._identity = identity
+        # Read before anything restarts it: 0 means it expired, so our previous session died with it armed.
+        if self.query(WATCHDOG_STATE) == 0:
+            self.events("watchdog_expired_before_connect", device=self.name,
+                        what="the supply's watchdog had switched the output off (a previous session ended "
+                             "without closing)")
+        self._set(CLEAR_STATUS)                      # stale entries would be blamed on our first setting
+        self._set(REMOTE_CV, "REMote")
+        self._set(REMOTE_CC, "REMote")
+        self.max_current_a = self.query(MAX_CURRENT)
+        max_voltage_v = self.query(MAX_VOLTAGE)
+        for what, value, maximum, unit in (("current limit", self.current_limit_a, self.max_current_a, "A"),
+                                           ("lamp current", current_a, self.max_current_a, "A"),
+                                           ("compliance", compliance_v or 0.0, max_voltage_v, "V")):
+            if value > maximum:
+                raise DeviceError(self.name, f"{what} {value:g} {unit} exceeds the supply's maximum {maximum:g} {unit}")
+        self._set(CURRENT_LIMIT, plain(self.current_limit_a))
+        read_back = self.query(CURRENT_LIMIT_VALUE)
+        # The supply may round the limit to its programming step (~0.02 ‰ of its maximum); allow 1 ‰.
+        if abs(read_back - self.current_limit_a) > 0.5e-4 + 1e-3 * self.max_current_a:
+            raise DeviceError(self.name, f"current limit reads back as {read_back:g} A after setting "
+                                         f"{self.current_limit_a:g} A")
+        self._set(VOLTAGE, plain(max_voltage_v if compliance_v is None else compliance_v))
+        self._set(WATCHDOG_ARM, self.watchdog_ms)
+
+    # -- events, held until a sink is attached ---------------------------------------------------
+    @property
+    def events(self) -> EventSink:
+        return self._sink or self._hold
+
+    @events.setter
+    def events(self, sink: EventSink) -> None:
+        self._sink = sink
+        held, self._held = getattr(self, "_held", []), []
+        for kind, fields in held:
+            sink(kind, **fields)
+
+    def _hold(self, kind: str, **fields: Any) -> None:
+        self._held.append((kind, fields))
 
     # -- LampSupply ----------------------------------------------------------------------------
     def identity(self) -> str:
@@ -88,15 +187,13 @@ class DeltaSM(LineInstrument, LampSupply):
     def set_current(self, current_a: float, ramp_s: float = 0.0) -> None:
         """Staircase from the present setpoint, one step per `ramp_step_s`, the last one on target.
 
-        A target the supply cannot reach is refused before the first step, not half-way up the ramp.
+        A target above the current limit or the supply's maximum is refused before the first step.
         """
-        if not 0.0 <= current_a <= self.max_current_a:
-            raise DeviceError(self.name, f"current {current_a:g} A outside the supply's 0 … {self.max_current_a:g} A")
-        start = self.query(CURRENT_SETPOINT) if ramp_s > 0 else current_a
-        steps = max(1, math.ceil(round(ramp_s / self.ramp_step_s, 9)))
-        for k in range(1, steps + 1):
-            self.clock.sleep(ramp_s / steps)
-            self._set(CURRENT, start + (current_a - start) * k / steps)
+        bound, what = min((self.current_limit_a, "the current limit"), (self.max_current_a, "the supply's maximum"))
+        if not 0.0 <= current_a <= bound:
+            raise DeviceError(self.name, f"current {current_a:g} A outside 0 … {bound:g} A ({what})")
+        start = min(self.query(CURRENT_SETPOINT), bound) if ramp_s > 0 else current_a
+        self._ramp(start, current_a, ramp_s)
 
     def set_output(self, on: bool) -> None:
         if on:
@@ -114,29 +211,88 @@ class DeltaSM(LineInstrument, LampSupply):
         return self.query(MEASURED_VOLTAGE)
 
     def close(self) -> None:
-        """Hand the setpoints back to the front panel (one attempt each); the output stays as it is."""
-        once = replace(self.retry, attempts=1)
+        """Clean end: stop feeding, disarm the watchdog, hand the setpoints back to the front panel, close the
+        link. Each step is tried once even if an earlier one failed; the first failure is raised at the end.
+        The output stays as it is."""
+        if self._cancel_feed is not None:
+            self._cancel_feed()
+            self._cancel_feed = None
+        steps: list[tuple[Setting, tuple[object, ...]]] = [
+            (WATCHDOG_STOP, ()), (REMOTE_CV, ("LOCal",)), (REMOTE_CC, ("LOCal",))]
+        first: DeviceError | None = None
         try:
-            for setting in (REMOTE_CV, REMOTE_CC):
-                self._set(setting, "LOCal", policy=once)
+            for setting, args in steps:
+                try:
+                    self._set(setting, *args, policy=self._once)
+                except DeviceError as exc:
+                    first = first or exc
         finally:
             self.link.close()
+        if first is not None:
+            raise first
+
+    # -- the watchdog ----------------------------------------------------------------------------
+    def _feed_watchdog(self) -> None:
+        """Keep-alive (runs during sleeps): one query restarts the watchdog. If it had expired (0) or is off
+        (-1: the supply restarted), say so and re-arm it; the output stays off. A failed feed is reported
+        and swallowed, never retried here: if the link stays dead, the watchdog does its job."""
+        try:
+            remaining_ms = self.ask(WATCHDOG_STATE)
+            if remaining_ms <= 0:
+                self.events("watchdog_expired" if remaining_ms == 0 else "watchdog_off", device=self.name,
+                            what="re-arming; the supply's output was switched off" if remaining_ms == 0
+                            else "re-arming")
+                self._set(WATCHDOG_ARM, self.watchdog_ms, policy=self._once)
+        except DeviceError as exc:
+            self.events("watchdog_feed_failed", device=self.name, error=str(exc))
 
     # -- exchanges -----------------------------------------------------------------------------
-    def _set(self, setting: Setting, *args: object, policy: RetryPolicy | None = None) -> None:
-        """Send a setting and read the error queue; an entry there is a refusal of this setting."""
+    def _ramp(self, start: float, target: float, ramp_s: float, policy: RetryPolicy | None = None,
+              tolerate_errors: bool = False) -> None:
+        steps = max(1, math.ceil(round(ramp_s / self.ramp_step_s, 9)))
+        for k in range(1, steps + 1):
+            self.clock.sleep(ramp_s / steps)
+            self._set(CURRENT, plain(target if k == steps else start + (target - start) * k / steps), policy=policy,
+                      tolerate_errors=tolerate_errors)
+
+    def _set(self, setting: Setting, *args: object, policy: RetryPolicy | None = None,
+             tolerate_errors: bool = False) -> None:
+        """Send a setting and read the error queue; an entry there is a refusal of this setting (on the way
+        down to off, `tolerate_errors`: an event, because a stale entry must not stop the way down)."""
         line = setting.text(*args)
 
         def exchange() -> None:
             self.send(setting, *args)
             errors = self._read_errors()
-            if errors:
+            if errors and tolerate_errors:
+                self.events("device_errors", device=self.name, what=line, errors=errors)
+            elif errors:
                 raise DeviceError(self.name, f"{line!r} refused: {'; '.join(errors)}")
         self.retrying(line, exchange, policy=policy)
 
     def _switch_off(self) -> None:
-        """Safety path: more attempts, and the read-back `OUTPut?` decides, not the error queue."""
+        """Safety path: ramp down (best effort), then `OUTPut OFF`, whatever happened in the ramp."""
+        try:
+            self._ramp_down()
+        except DeviceError as exc:
+            self.events("switch_off_ramp_failed", device=self.name, error=str(exc))
+        finally:
+            self._output_off()
+
+    def _ramp_down(self) -> None:
+        """To 0 A over min(ramp_s, OFF_RAMP_MAX_S), one attempt per exchange; skipped when the output is off
+        already (no filament to spare) or the supply does not answer (no time to lose)."""
+        ramp_s = min(self.ramp_s, OFF_RAMP_MAX_S)
+        if ramp_s <= 0 or not self.ask(OUTPUT_STATE):
+            return
+        start = self.ask(CURRENT_SETPOINT)
+        if start > 0:
+            self._ramp(start, 0.0, ramp_s, policy=self._once, tolerate_errors=True)
+
+    def _output_off(self) -> None:
+        """More attempts, and the read-backs decide, not the error queue: `OUTPut?` off and no current."""
         line = OUTPUT.text("OFF")
+        threshold_a = max(OFF_CURRENT_A, OFF_CURRENT_REL * self.current_limit_a)
 
         def exchange() -> None:
             self.send(OUTPUT, "OFF")
@@ -145,6 +301,10 @@ class DeltaSM(LineInstrument, LampSupply):
                 self.events("device_errors", device=self.name, what=line, errors=errors)
             if self.ask(OUTPUT_STATE):
                 raise DeviceError(self.name, f"output still on after {line!r}", transient=True)
+            current_a = self.ask(MEASURED_CURRENT)
+            if abs(current_a) >= threshold_a:
+                raise DeviceError(self.name, f"output still carries {current_a:g} A after {line!r} "
+                                             f"(off means below {threshold_a:g} A)", transient=True)
         self.retrying(line, exchange, policy=replace(self.retry, attempts=max(self.retry.attempts, OFF_ATTEMPTS)))
 
     def _read_errors(self) -> list[str]:

@@ -16,7 +16,8 @@ import abc
 from dataclasses import dataclass
 
 from rig.core.clock import Clock
-from rig.core.values import Frame, IlluminanceReading, SensorInfo, Window
+from rig.core.errors import DeviceError
+from rig.core.values import Frame, IlluminanceReading, LuminanceImage, SensorInfo, Window
 
 
 class Device:
@@ -152,7 +153,8 @@ class IlluminanceMeter(Device, abc.ABC):
 
 
 class LuminanceCamera(Device, abc.ABC):
-    """Calibrated luminance camera: raw frames plus the calibration to cd/m²."""
+    """Calibrated luminance camera: raw frames plus the calibration to cd/m² (or, a
+    `CalibratedLuminanceCamera`, luminance pictures it calibrates itself)."""
 
     sensor: SensorInfo
 
@@ -169,6 +171,33 @@ class LuminanceCamera(Device, abc.ABC):
 
     def full_window(self) -> Window:
         return Window(0, 0, self.sensor.width_px, self.sensor.height_px)
+
+
+class CalibratedLuminanceCamera(LuminanceCamera, abc.ABC):
+    """A camera that delivers calibrated luminance (cd/m²) rather than raw counts (TechnoTeam LMK).
+
+    It applies its own calibration, dark subtraction and HDR merge, so rig takes no dark frames
+    and merges nothing: rig.acquisition.calibrated_capture captures its points. `sensor` still
+    gives the size, the exposure range and the calibration's relative uncertainty (recorded in the
+    uncertainty budget); its raw-signal fields are not used. Without a raw path `capture` and
+    `capture_dark` raise.
+    """
+
+    @abc.abstractmethod
+    def capture_luminance(self, exposure_s: float, window: Window | None = None) -> LuminanceImage:
+        """One calibrated picture at one exposure time; read only `window` (full sensor if None)."""
+
+    @abc.abstractmethod
+    def capture_hdr_luminance(self, max_exposure_s: float, min_exposure_s: float, factor: float,
+                              window: Window | None = None) -> LuminanceImage:
+        """One high-dynamic-range picture: the camera chooses exposures between the two limits,
+        successive ones `factor` apart, and merges them."""
+
+    def capture(self, exposure_s: float, window: Window | None = None) -> Frame:
+        raise DeviceError(self.identity(), "delivers calibrated luminance only: no raw frames")
+
+    def capture_dark(self, exposure_s: float, window: Window | None = None) -> Frame:
+        raise DeviceError(self.identity(), "delivers calibrated luminance only: it takes its own dark frames")
 
 
 @dataclass

@@ -1,40 +1,72 @@
-"""Gigahertz-Optik P9710 optometer over RS-232 (9600 8N1, LF), as an IlluminanceMeter.
+"""Gigahertz-Optik P-9710 optometer over RS-232 (9600 8N1, LF), as an IlluminanceMeter.
+
+The protocol is the manual's (P-9710 Operating Manual V1.20, §15 Remote
+Interface; contract in docs/p9710.md): one LF-terminated command line, one
+LF-terminated answer line. A command without an answer is acknowledged by a
+bare LF; any error by `?x`, x a sum of the error bits below. Such a code is
+the meter's own verdict (a refused command, an overloaded input), so it is a
+persistent DeviceError naming its meaning and is never retried; a garbled,
+cut-off or missing reply is a transient fault, retried after a reconnect.
 
 Illuminance = photocurrent (`MA`) × the detector's certificate factor from the
 rig configuration, which the dataset records; `MV` (the meter's own calibrated
-value) is never used, so a factor stored in the meter cannot silently differ
-from the recorded one. The meter autoranges (`SB1`, sent on every connect, as
-a power-cycled meter forgets it), so an over- or underrange answer means the
-range is still settling: it is retried like a timeout or a garbled line.
-
-Commands and reply formats follow the open-source driver
-(github.com/matusm/Bev.Instruments.P9710): one LF-terminated ASCII reply per
-command. `OVER`/`UNDER` for out-of-range readings is our assumption.
+value) is never used, so a factor stored in the head cannot silently differ
+from the recorded one. `GR` rides on the same command line as `MA` (`MA;GR`),
+so the range reported is the one the reading was taken on and the reading's
+uncertainty can follow it. Autorange (`SB1`) and the integration time (`SN`)
+are set on every connect: they live in the meter's RAM, and the front panel can
+change them. Commands that write the head's EEPROM or need a code (SP, SC, SE,
+TS, TE, SF, TA, RA) are never sent.
 """
 
 from __future__ import annotations
 
 import re
+from typing import TypeVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading
 from rig.drivers.interfaces import IlluminanceMeter
-from rig.drivers.line_instrument import LineInstrument, Query, UnexpectedReply
+from rig.drivers.line_instrument import LineInstrument, Query, Setting, UnexpectedReply
 from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
+T = TypeVar("T")
+
+#: §15.4: the bits of an error reply `?x`.
+ERROR_BITS = {
+    1: "command not allowed",
+    2: "command parameter not allowed",
+    4: "wrong code number",
+    8: "parameter out of limits",
+    16: "input signal overload (more than the 2 mA top range holds: direct lamp light?)",
+    32: "input signal underload (less than the 200 pA range resolves: no light on the detector?)",
+    64: "EEPROM write error",
+}
+_ERROR_REPLY = re.compile(r"\?(\d+)")
+#: The two identity forms: the manual's `P-9710 4.7` and a firmware 5.6 unit's `P9710 V5.6`.
+_IDENTITY = re.compile(r"P-?9710 V?\d+(\.\d+)+")
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
-OUT_OF_RANGE = {"OVER": "overrange", "UNDER": "underrange"}
-RANGE_REPLIES = {str(r): r for r in range(8)}      # 0 = 2 mA full scale … 7 = 200 pA
+RANGE_REPLIES = {str(r): r for r in range(8)}      # 0 = 2 mA full scale … 7 = 200 pA (most sensitive)
+#: `SN` takes the CW integration time in steps of 0.1 ms, 1 … 59999.
+INTEGRATION_STEP_S = 1e-4
+INTEGRATION_STEPS = range(1, 60000)
 
 
-def _photocurrent_a(reply: str) -> float:
-    if reply in OUT_OF_RANGE:
-        raise UnexpectedReply(f"{OUT_OF_RANGE[reply]}: {{command!r}} answered {{reply!r}}")
-    if not _NUMBER.fullmatch(reply):
-        raise UnexpectedReply("non-numeric reply to {command!r}: {reply!r}")
-    return float(reply)
+def error_meaning(code: int) -> str:
+    """The meaning of error reply `?code`: each set bit's, joined; bits the manual does not define say so."""
+    meanings = [text for bit, text in ERROR_BITS.items() if code & bit]
+    unknown = code & ~sum(ERROR_BITS)
+    if unknown or not meanings:
+        meanings.append(f"undocumented error bits {unknown}")
+    return " + ".join(meanings)
+
+
+def acknowledged(reply: str) -> None:
+    """A command without an answer is acknowledged by a bare line feed: nothing else is."""
+    if reply:
+        raise UnexpectedReply("{command!r} answered {reply!r} instead of the bare line feed that acknowledges it")
 
 
 def _range(reply: str) -> int:
@@ -43,40 +75,66 @@ def _range(reply: str) -> int:
     return RANGE_REPLIES[reply]
 
 
-# -- the command table -----------------------------------------------------------------------------
-MODEL = Query("GI", str)                   # type and firmware, e.g. `P9710 V5.6`
+def _current_and_range(reply: str) -> tuple[float, int]:
+    """`MA;GR`'s answer: `<current>;<range>`, the answers separated by the spacer the command used."""
+    current, spacer, range_index = reply.partition(";")
+    if not spacer or not _NUMBER.fullmatch(current) or range_index not in RANGE_REPLIES:
+        raise UnexpectedReply("{command!r} answered {reply!r}, not '<current>;<range 0…7>'")
+    return float(current), RANGE_REPLIES[range_index]
+
+
+# -- the command table (§15.3) ---------------------------------------------------------------------
+MODEL = Query("GI", str)                   # software version: `P-9710 x.x` (manual) or `P9710 V5.6`
 SERIAL_NUMBER = Query("TT", str)
 DETECTOR = Query("GK", str)
-#: Autorange on; the reply's content is undocumented, reading it keeps replies in step.
-AUTORANGE_ON = Query("SB1", str)
-PHOTOCURRENT = Query("MA", _photocurrent_a, "A")
-RANGE = Query("GR", _range)                # 0 (2 mA full scale) … 7 (200 pA)
+AUTORANGE_ON = Setting("SB1")
+INTEGRATION_TIME = Setting("SN{}", "0.1 ms")
+READING = Query("MA;GR", _current_and_range, "A")     # photocurrent and the range it was measured on
+RANGE = Query("GR", _range)
 
 
 class P9710(LineInstrument, IlluminanceMeter):
-    """Connects on construction (identity checked, autorange on); `events(kind, **fields)` hears retries."""
+    """Connects on construction (identity checked, autorange on, integration time set).
+
+    A reading's reply may take the integration time plus the autoranger's settling
+    (`autorange_s`) longer than other replies; `timeout_s` is the link's own margin.
+    `events(kind, **fields)` hears retries.
+    """
 
     def __init__(self, url: str, *, calibration_lx_per_a: float, clock: Clock, name: str = "meter",
                  timeout_s: float = 1.0, retry: RetryPolicy = DEFAULT_RETRY, integration_s: float = 0.2,
-                 open_port: PortOpener = open_pyserial):
+                 autorange_s: float = 0.2, open_port: PortOpener = open_pyserial):
+        steps = round(integration_s / INTEGRATION_STEP_S)
+        if steps not in INTEGRATION_STEPS:
+            raise ValueError(f"{name}: integration time {integration_s:g} s is outside the P-9710's "
+                             f"0.1 ms … 5.9999 s")
         super().__init__(url, name=name, clock=clock, timeout_s=timeout_s, retry=retry, baudrate=9600,
                          open_port=open_port)
         self.calibration_lx_per_a = calibration_lx_per_a
-        self.integration_s = integration_s
+        self.integration_steps = steps
+        self.reading_timeout_s = steps * INTEGRATION_STEP_S + autorange_s + timeout_s
         self._identity = ""
+        self._heard = False          # whether any complete reply line has arrived
         try:
             self.retrying("connect", self.reconnect, reconnect=False)    # reconnect() opens the port itself
-        except DeviceError:
+        except DeviceError as exc:
             self.link.close()
-            raise
+            if not exc.unanswered or self._heard:
+                raise
+            # Outside the "Remote RS232" mode the meter takes no commands: the likeliest silence at connect.
+            raise DeviceError(self.name, f"{str(exc).removeprefix(f'{self.name}: ')} (is the meter's menu Mode "
+                                         f"set to \"Remote RS232\"?)", unanswered=True) from exc
 
     # -- IlluminanceMeter ----------------------------------------------------------------------
     def identity(self) -> str:
         return self._identity
 
     def read(self) -> IlluminanceReading:
-        current = self.retrying(PHOTOCURRENT.text(), self._photocurrent)
-        return IlluminanceReading(current * self.calibration_lx_per_a, current, self.calibration_lx_per_a)
+        """One measurement: the meter integrates, autoranges, then answers current and range."""
+        current, range_index = self.retrying(
+            READING.text(), lambda: self.ask(READING, timeout_s=self.reading_timeout_s))
+        return IlluminanceReading(current * self.calibration_lx_per_a, current, self.calibration_lx_per_a,
+                                  range_index=range_index)
 
     # -- further commands ----------------------------------------------------------------------
     def measuring_range(self) -> int:
@@ -85,15 +143,34 @@ class P9710(LineInstrument, IlluminanceMeter):
 
     # -- protocol ------------------------------------------------------------------------------
     def reconnect(self) -> None:
-        """(Re)open the port, check that a P9710 answers and switch autorange on (a retry's way back)."""
+        """(Re)open the port, check that a P-9710 answers, switch autorange on and set the integration
+        time (a retry's way back, as a power-cycled or hand-operated meter may have lost them)."""
         self.link.reconnect()
         model = self.ask(MODEL)
-        if not model.startswith("P9710"):
-            raise DeviceError(self.name, f"{MODEL.text()!r} answered {model!r}: not a P9710")
+        if not _IDENTITY.fullmatch(model):
+            raise DeviceError(self.name, f"{MODEL.text()!r} answered {model!r}: not a P-9710")
         serial_no, detector = self.ask(SERIAL_NUMBER), self.ask(DETECTOR)
-        self.ask(AUTORANGE_ON)
+        self.apply(AUTORANGE_ON)
+        self.apply(INTEGRATION_TIME, self.integration_steps)
         self._identity = f"Gigahertz-Optik {model} SN {serial_no} detector {detector}"
 
-    def _photocurrent(self) -> float:
-        self.clock.sleep(self.integration_s)     # one integration per reading (and per retry)
-        return self.ask(PHOTOCURRENT)
+    def apply(self, setting: Setting, *args: object) -> None:
+        """Send a setting and read its acknowledgement (a bare LF; `?x` is a persistent error)."""
+        self.ask(Query(setting.template, acknowledged, setting.unit), *args)
+
+    def ask(self, query: Query[T], *args: object, timeout_s: float | None = None) -> T:
+        """One exchange, no retry: `?x` is a persistent DeviceError naming the code's meaning; a reply
+        `parse` rejects is a transient one. `timeout_s` replaces the link's for this reply."""
+        line = query.text(*args)
+        reply = self.link.query(line, timeout_s)
+        self._heard = True
+        refused = _ERROR_REPLY.fullmatch(reply)
+        if refused:
+            raise DeviceError(self.name, f"{line!r} answered {reply!r}: {error_meaning(int(refused[1]))}")
+        try:
+            return query.parse(reply)
+        except UnexpectedReply as exc:
+            message = exc.message.format(command=line, reply=reply)
+        except ValueError:
+            message = f"garbled reply to {line!r}: {reply!r}"
+        raise DeviceError(self.name, message, transient=True)

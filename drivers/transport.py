@@ -23,6 +23,7 @@ class Port(Protocol):
     """The part of a pyserial port the transport uses."""
 
     is_open: bool
+    timeout: float | None
 
     def write(self, data: bytes, /) -> int | None: ...
     def flush(self) -> None: ...
@@ -38,7 +39,11 @@ class PortOpener(Protocol):
 
 
 def open_pyserial(url: str, *, baudrate: int, timeout: float, write_timeout: float) -> Port:
-    port: Port = serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)
+    """A serial device path is opened exclusively (an advisory lock): a second program on the same port
+    would interleave its exchanges with ours; it is told the port is busy instead."""
+    options = {} if "://" in url else {"exclusive": True}
+    port: Port = serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout,
+                                       **options)
     return port
 
 
@@ -101,10 +106,18 @@ class LineTransport:
             self.close()
             raise DeviceError(self.device, f"connection lost while sending {line!r}: {exc}", transient=True) from None
 
-    def read_line(self, request: str) -> str:
+    def read_line(self, request: str, timeout_s: float | None = None) -> str:
+        """One reply line; `timeout_s` replaces the link's timeout for this reply (a slow measurement)."""
         port = self.open()
+        wait_s = self.timeout_s if timeout_s is None else timeout_s
         try:
-            raw = port.read_until(self.terminator)
+            if timeout_s is not None:
+                port.timeout = timeout_s
+            try:
+                raw = port.read_until(self.terminator)
+            finally:
+                if timeout_s is not None:
+                    port.timeout = self.timeout_s
         except (serial.SerialException, OSError) as exc:
             self.close()
             raise DeviceError(self.device, f"connection lost waiting for the reply to {request!r}: {exc}",
@@ -112,13 +125,13 @@ class LineTransport:
         if not raw.endswith(self.terminator):
             if raw == b"" and getattr(port, "is_open", True) is False:
                 self.close()
-            raise DeviceError(self.device, f"no complete reply to {request!r} within {self.timeout_s} s "
+            raise DeviceError(self.device, f"no complete reply to {request!r} within {wait_s:g} s "
                               f"(got {raw!r})", transient=True)
         try:
             return raw[:-len(self.terminator)].decode("ascii").strip()
         except UnicodeDecodeError:
             raise DeviceError(self.device, f"garbled reply to {request!r}: {raw!r}", transient=True) from None
 
-    def query(self, line: str) -> str:
+    def query(self, line: str, timeout_s: float | None = None) -> str:
         self.write_line(line)
-        return self.read_line(line)
+        return self.read_line(line, timeout_s)

@@ -1,22 +1,33 @@
-"""Wall clock for real rigs."""
+"""Wall clock for real rigs (and for clients of a served simulated rig, which runs faster)."""
 
 from __future__ import annotations
 
+import math
 import time
 
 from rig.core.clock import Clock
 
 
 class WallClock(Clock):
+    """`scale` rig seconds pass per wall second: 1 on hardware; a served simulated rig (`rig sim serve
+    --speed N`) runs N times faster than wall time, and so does its clients' clock."""
+
+    def __init__(self, scale: float = 1.0):
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"clock scale must be a positive number, got {scale!r}")
+        self.scale = scale
+        self._origin = time.monotonic()
+
     def now(self) -> float:
-        return time.monotonic()
+        return (time.monotonic() - self._origin) * self.scale
 
     def sleep(self, seconds: float) -> None:
-        """Sleep in slices of at most CHECK_SLICE_S, so that `sleep_check` can end a long move's wait."""
+        """Sleep in slices of at most CHECK_SLICE_S of wall time, so that `sleep_check` can end a long
+        move's wait, and no longer than the next keep-alive is due."""
         if seconds < 0:
             raise ValueError(f"cannot sleep a negative time ({seconds} s)")
-        end = time.monotonic() + seconds
+        end = time.monotonic() + seconds / self.scale
         self._check()
         while (left := end - time.monotonic()) > 0:
-            time.sleep(min(left, self.CHECK_SLICE_S))
+            time.sleep(min(left, self.CHECK_SLICE_S, self._until_due_s() / self.scale))
             self._check()

@@ -8,13 +8,22 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rig.config.files import clip
-from rig.config.rigfile import POSITIONER_AXES, CameraConfig, CameraDevice, PositionerDevice, RigConfig, RigConfigError
+from rig.config.rigfile import (
+    POSITIONER_AXES,
+    SERVED_CAMERA,
+    CameraConfig,
+    CameraDevice,
+    PositionerDevice,
+    RigConfig,
+    RigConfigError,
+)
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.delta_sm import DeltaSM
 from rig.drivers.interfaces import LuminanceCamera, RigDevices, TwoAxisPositioner
 from rig.drivers.modbus_axis import ModbusAxisController
 from rig.drivers.p9710 import P9710
+from rig.drivers.sim_camera import ServedCamera
 
 __all__ = ["POSITIONER_AXES", "camera_class", "check_devices", "connect_devices", "vendor_camera"]
 
@@ -70,7 +79,8 @@ def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
         return
     try:
         _check_addresses(config)
-        camera_class(config.devices.camera, config.camera)
+        if config.devices.camera.driver != SERVED_CAMERA:
+            camera_class(config.devices.camera, config.camera)
     except RigConfigError as exc:
         raise RigConfigError(f"{source}: {exc}") from None
 
@@ -107,14 +117,22 @@ def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | N
     d = config.devices
     opened: list = []
     try:
+        if camera is None and d.camera.driver == SERVED_CAMERA:
+            # First: the served rig's camera session is what refuses a second client, before any other
+            # device of the rig has been touched.
+            camera = ServedCamera(d.camera.options["address"], clock=clock)
+            opened.append(camera)
         arm = _positioner(config, "arm", d.arm, clock)
         opened.append(arm)
         stage = _positioner(config, "stage", d.stage, clock)
         opened.append(stage)
-        lamp = DeltaSM(d.lamp.address, clock=clock, timeout_s=d.lamp.timeout_s)
+        lamp = DeltaSM(d.lamp.address, clock=clock, timeout_s=d.lamp.timeout_s, current_a=config.lamp.current_a,
+                       current_limit_a=config.lamp.current_limit_a, watchdog_s=config.lamp.watchdog_s,
+                       ramp_s=config.lamp.ramp_s)
         opened.append(lamp)
         meter = P9710(d.meter.address, calibration_lx_per_a=config.meter.calibration_lx_per_a, clock=clock,
-                      timeout_s=d.meter.timeout_s, integration_s=config.meter.integration_s)
+                      timeout_s=d.meter.timeout_s, integration_s=config.meter.integration_s,
+                      autorange_s=config.meter.autorange_s)
         opened.append(meter)
         if camera is None:
             camera = vendor_camera(config, d.camera)

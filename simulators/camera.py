@@ -63,8 +63,10 @@ class SimCamera(LuminanceCamera):
     def capture_dark(self, exposure_s: float, window: Window | None = None) -> Frame:
         return self._expose(exposure_s, window, dark=True)
 
-    def _expose(self, exposure_s: float, window: Window | None, dark: bool) -> Frame:
-        """Render at mid-exposure, read through the sensor, and spend exposure + readout time."""
+    def render(self, exposure_s: float, window: Window | None, dark: bool) -> tuple[Frame, float]:
+        """Render the scene at mid-exposure and read it through the sensor, without letting time pass:
+        the frame and the rig time its exposure + readout take (the caller spends it, so that a served
+        camera's client can sleep it on its own clock while its keep-alives run)."""
         full = self.full_window()
         window = full if window is None else window
         try:
@@ -74,10 +76,15 @@ class SimCamera(LuminanceCamera):
         if not np.isfinite(exposure_s):
             raise DeviceError("camera", f"exposure time {exposure_s!r} s is not a number")
         t = float(np.clip(exposure_s, self.sensor.min_exposure_s, self.sensor.max_exposure_s))
-        clock = self.world.clock
-        start = clock.now()
+        start = self.world.clock.now()
         lum = 0.0 if dark else self.luminance(window, self.world.illuminance_normal_lx(start + t / 2))
         pixels = self.model.read(self.world.rng, lum, t, window)
         fraction = (window.width * window.height) / (full.width * full.height)
-        clock.sleep(t + self.world.config.camera.readout_s * fraction)
-        return Frame(pixels, t, window, dark=dark, meta={"start_s": start})
+        duration = t + self.world.config.camera.readout_s * fraction
+        return Frame(pixels, t, window, dark=dark, meta={"start_s": start}), duration
+
+    def _expose(self, exposure_s: float, window: Window | None, dark: bool) -> Frame:
+        """Render, then spend exposure + readout time on the world's clock."""
+        frame, duration = self.render(exposure_s, window, dark)
+        self.world.clock.sleep(duration)
+        return frame

@@ -57,20 +57,29 @@ class SimClock(Clock):
         with self._lock:
             return self._t
 
+    def advance(self, seconds: float) -> None:
+        """Rig time an instrument spends while its client waits for the reply (`SimWorld.spend_s`):
+        no keep-alives, no stop check, no pacing."""
+        if seconds < 0:
+            raise ValueError(f"cannot advance a negative time ({seconds} s)")
+        with self._lock:
+            self._t += seconds
+
     def sleep(self, seconds: float) -> None:
+        """Advance rig time by `seconds`, in steps that end where a keep-alive is due (and, paced, in
+        wall slices of CHECK_SLICE_S), running the due keep-alives and `sleep_check` after each."""
         if seconds < 0:
             raise ValueError(f"cannot sleep a negative time ({seconds} s)")
         self._check()
-        if self.pace == 0:
-            with self._lock:
-                self._t += seconds
-            return
         left = seconds
         while left > 0:
-            step = min(left, self.CHECK_SLICE_S / self.pace)
+            step = min(left, self._until_due_s())
+            if self.pace > 0:
+                step = min(step, self.CHECK_SLICE_S / self.pace)
+            step = max(step, min(left, 1e-9))        # an overdue keep-alive is run below; never stand still
             with self._lock:
                 self._t += step
-                delay = self._wall0 + (self._t - self._t0) * self.pace - time.monotonic()
+                delay = self._wall0 + (self._t - self._t0) * self.pace - time.monotonic() if self.pace else 0.0
                 if delay < -self.CHECK_SLICE_S:     # wall time went on computing: do not race to catch up
                     self._wall0, self._t0, delay = time.monotonic(), self._t, 0.0
             left -= step

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from rig.simulators.clock import SimClock
+from rig.core.clock import Clock
 
 #: Integration steps per thermal time constant (exponential Euler; exact at constant current).
 STEPS_PER_TAU = 10
@@ -35,7 +35,7 @@ class LampPhysics:
       limit, no light; `replace()` installs a new, cold lamp.
     """
 
-    def __init__(self, clock: SimClock, nominal_current_a: float, exponent: float,
+    def __init__(self, clock: Clock, nominal_current_a: float, exponent: float,
                  warmup_amplitude: float, warmup_tau_s: float, drift_per_hour: float, *,
                  rated_voltage_v: float = 12.0, cold_ratio: float = 0.1, resistance_exponent: float = 0.8,
                  thermal_tau_s: float = 0.15):

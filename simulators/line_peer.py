@@ -32,11 +32,27 @@ class HangUp(Exception):
     """Raised by `respond` to drop the connection instead of answering."""
 
 
-class _TcpServer:
-    """One thread serves the listener and every connection (clients may reconnect at will)."""
+def peer_gone(conn: socket.socket) -> bool:
+    """Whether the far end has closed `conn` (an EOF or a reset waits to be read), without consuming
+    anything: a client that closed its socket, or died, before its server noticed."""
+    try:
+        return conn.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+    except (BlockingIOError, InterruptedError):
+        return False                              # open, nothing to read
+    except OSError:
+        return True
 
-    def __init__(self, respond: Responder, name: str):
+
+class _TcpServer:
+    """One thread serves the listener and every connection (clients may reconnect at will).
+
+    `exclusive`: one connection at a time, as an instrument whose Ethernet module takes one client;
+    a second one is closed at once, unless the held one turns out closed by its client (a driver
+    that reconnects closes its old socket first; the server may not have seen that EOF yet)."""
+
+    def __init__(self, respond: Responder, name: str, exclusive: bool = False):
         self._respond = respond
+        self._exclusive = exclusive
         self._listener = socket.create_server(("127.0.0.1", 0))
         self._wake = socket.socketpair()
         self.address = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
@@ -65,6 +81,9 @@ class _TcpServer:
                             conn, _ = self._listener.accept()
                         except OSError:               # the client gave up before we got to it
                             continue
+                        if self._exclusive and not self._free(sel, pending):
+                            conn.close()              # refused: nothing is sent
+                            continue
                         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                         sel.register(conn, selectors.EVENT_READ)
                         pending[conn] = b""
@@ -76,6 +95,15 @@ class _TcpServer:
             for conn in pending:
                 conn.close()
             sel.close()
+
+    @staticmethod
+    def _free(sel: selectors.BaseSelector, pending: dict[Any, bytes]) -> bool:
+        """Drop held connections whose client has gone; whether none is left."""
+        for conn in [c for c in pending if peer_gone(c)]:
+            sel.unregister(conn)
+            del pending[conn]
+            conn.close()
+        return not pending
 
     def _receive(self, conn: socket.socket, pending: dict[Any, bytes]) -> bool:
         """Answer the complete lines received; False when the connection is over."""
@@ -145,8 +173,11 @@ class LinePeer:
     #: The part of a reply the `short` fault lets through (no terminator).
     SHORT_FRACTION = 0.5
 
-    def __init__(self, medium: Literal["tcp", "pty"]):
+    def __init__(self, medium: Literal["tcp", "pty"], *, exclusive: bool = False):
+        """`exclusive` (TCP; read at `start`): refuse a second client while one is connected, so that two
+        programs never interleave exchanges. A pty needs no flag: the driver opens it with an exclusive lock."""
         self.medium = medium
+        self.exclusive = exclusive
         self.url: str | None = None
         self._server: _TcpServer | _PtyServer | None = None
         self._faults: deque[str] = deque()
@@ -166,8 +197,9 @@ class LinePeer:
         """Listen and answer; returns the address for pyserial (`socket://127.0.0.1:PORT` or a pty path)."""
         if self._server is not None:
             raise RuntimeError(f"{type(self).__name__} already started on {self.url}")
-        server_class = _TcpServer if self.medium == "tcp" else _PtyServer
-        self._server = server_class(self.respond, type(self).__name__)
+        name = type(self).__name__
+        self._server = (_TcpServer(self.respond, name, self.exclusive) if self.medium == "tcp"
+                        else _PtyServer(self.respond, name))
         self.url = self._server.address
         return self.url
 

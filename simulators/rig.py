@@ -20,6 +20,22 @@ from rig.simulators.modbus_axis_server import ModbusAxisServer
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
 
+Peer = ModbusAxisServer | DeltaSMPeer | P9710Peer
+
+
+def protocol_peers(world: SimWorld) -> dict[str, Peer]:
+    """The peers of the rig's four wire-protocol devices (arm, stage, lamp, meter), not yet started."""
+    config = world.config
+    d = config.devices
+    peers: dict[str, Peer] = {
+        name: ModbusAxisServer(world, [(axis, getattr(config.axes, axis)) for axis in axes],
+                               steps_per_degree=getattr(d, name).steps_per_degree, device_id=getattr(d, name).device_id)
+        for name, axes in POSITIONER_AXES.items()
+    }
+    peers["lamp"] = DeltaSMPeer(world)
+    peers["meter"] = P9710Peer(world)
+    return peers
+
 
 class SimulatedRig:
     """Context manager: `with SimulatedRig(cfg, "retrophong", params) as sim: sim.devices ...`.
@@ -30,15 +46,7 @@ class SimulatedRig:
     def __init__(self, config: RigConfig, brdf_model: str, brdf_params: Mapping[str, float]):
         self.config = config
         self.world = SimWorld(config, get_model(brdf_model), brdf_params)
-        d = config.devices
-        self.peers: dict[str, ModbusAxisServer | DeltaSMPeer | P9710Peer] = {
-            name: ModbusAxisServer(self.world, [(axis, getattr(config.axes, axis)) for axis in axes],
-                                   steps_per_degree=getattr(d, name).steps_per_degree,
-                                   device_id=getattr(d, name).device_id)
-            for name, axes in POSITIONER_AXES.items()
-        }
-        self.peers["lamp"] = DeltaSMPeer(self.world)
-        self.peers["meter"] = P9710Peer(self.world)
+        self.peers = protocol_peers(self.world)
         self.devices: RigDevices | None = None
 
     def start(self) -> RigDevices:

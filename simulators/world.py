@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from rig.config.rigfile import RigConfig
+from rig.core.clock import Clock
 from rig.physics.brdf_models import BrdfModel
 from rig.physics.geometry import AXIS_NAMES
 from rig.planning.points import as_motors
@@ -23,7 +24,9 @@ class SimWorld:
     """Shared truth of one simulated rig."""
 
     def __init__(self, config: RigConfig, brdf: BrdfModel, brdf_params: Mapping[str, float],
-                 clock: SimClock | None = None):
+                 clock: Clock | None = None):
+        """`clock`: a SimClock (the in-process simulated rig, the default) or a wall clock that runs
+        `--speed` times faster (a served rig, `rig sim serve`)."""
         self.config = config
         self.clock = clock or SimClock()
         self.rng = np.random.default_rng(config.simulation.seed)
@@ -34,6 +37,15 @@ class SimWorld:
         sim = config.simulation
         self.lamp = LampPhysics(self.clock, config.lamp.current_a, sim.lamp_exponent,
                                 sim.warmup_amplitude, sim.warmup_tau_s, sim.drift_per_hour)
+
+    def spend_s(self, seconds: float) -> None:
+        """Let `seconds` of rig time pass inside an instrument (a meter integrating, a camera exposing),
+        from a peer's thread: a SimClock is advanced without running the client's keep-alives or stop
+        check (the client is blocked waiting for the reply); a wall clock is simply waited on."""
+        if isinstance(self.clock, SimClock):
+            self.clock.advance(seconds)
+        else:
+            self.clock.sleep(seconds)
 
     def brdf(self, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
         """Ground-truth f_r (sr⁻¹) for SCS unit vectors."""

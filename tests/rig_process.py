@@ -20,9 +20,11 @@ HANG_S = 120.0
 
 
 def start_rig(*args: str, env: dict[str, str] | None = None, **popen) -> subprocess.Popen:
-    """`python -m rig.cli.main ARGS` with text pipes; `env` is added to this process's environment."""
-    return subprocess.Popen([sys.executable, "-m", "rig.cli.main", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, **(env or {})}, **popen)
+    """`python -m rig.cli.main ARGS` with text pipes (unless `popen` redirects them); `env` is added to
+    this process's environment."""
+    pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, **popen}
+    return subprocess.Popen([sys.executable, "-m", "rig.cli.main", *args], text=True,
+                            env={**os.environ, **(env or {})}, **pipes)
 
 
 def events_text(folder: Path) -> str:

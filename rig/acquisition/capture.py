@@ -1,6 +1,7 @@
 """HDR capture of one measurement point with a `LuminanceCamera`.
 
-The only module that drives the camera. It chooses the exposures the ROI needs
+The only module that drives the camera (a camera delivering calibrated
+luminance is handed to `rig.acquisition.calibrated_capture`). It chooses the exposures the ROI needs
 (Hasinoff et al. 2010: scene-adapted exposure sets beat fixed brackets), takes
 them with cached dark frames, and hands the raw data to the pure physics in
 `rig.physics.hdr` (merge) and `rig.physics.roi` (ROI statistics).
@@ -38,11 +39,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rig.acquisition.calibrated_capture import (
+    CalibratedAcquisition,
+    acquire_calibrated,
+    point_windows,
+    reduce_calibrated,
+)
 from rig.config.capture import CaptureSettings
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
-from rig.core.values import Frame, SensorInfo, Window
-from rig.drivers.interfaces import LuminanceCamera
+from rig.core.values import Frame, PointCapture, SensorInfo, Window
+from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera
 from rig.physics.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
 from rig.physics.roi import mean_noise, roi_statistics
 
@@ -52,34 +59,6 @@ MAX_METERING_STEPS = 4
 KEEP_TOLERANCE_STOPS = 0.5
 #: Peak signals below this (DN) are treated as this, so an unlit ROI asks for the longest exposure.
 MIN_PEAK_DN = 1.0
-
-@dataclass(frozen=True)
-class PointCapture:
-    """Result of `capture_point`: the ROI luminance and how it was obtained.
-
-    The uncertainty components are for the budget table; they are not to be
-    added to u_luminance_cd_m2, which already holds them. u_block (the spread of
-    block means, `rig.physics.roi`) contains the camera noise and the texture:
-    u_block² ≈ u_noise² + u_texture², u_luminance² = u_block² + (u_rel,cal · L)²;
-    and u_noise² = u_frames² + u_dark², where only u_frames is independent from
-    point to point (u_dark is shared by the points that reuse the same darks).
-    """
-
-    luminance_cd_m2: float
-    u_luminance_cd_m2: float           # block-based ROI uncertainty ⊕ calibration
-    roi_std_cd_m2: float               # pixel standard deviation inside the ROI
-    exposures_s: tuple[float, ...]     # realised exposure times merged
-    saturated_fraction: float          # of ROI pixels, in the longest merged exposure
-    flags: tuple[str, ...]             # `low_signal`, `roi_saturated`
-    image_cd_m2: np.ndarray | None     # whole merged image when full_frame
-    roi_window: Window                 # in sensor coordinates
-    n_frames: int                      # raw frames taken, darks excluded
-    u_noise_cd_m2: float               # camera noise of the ROI mean, from the merge variance
-    u_dark_cd_m2: float                # the part of u_noise due to the subtracted dark frames
-    u_texture_cd_m2: float             # ROI non-uniformity: √max(u_block² − u_noise², 0)
-    capture_time_s: float              # rig time taken (clock), else the summed exposure times
-    n_darks: int                       # dark frames taken for this point
-
 
 def _pixels(camera: LuminanceCamera, frame: Frame, window: Window) -> np.ndarray:
     """`window`'s pixels of a frame; a camera that cannot read windows returns a larger one."""
@@ -185,14 +164,6 @@ class _Shots:
         return float(sum(map(sum, self._realised.values())))
 
 
-def _grown(window: Window, margin_px: int, sensor: SensorInfo) -> Window:
-    """`window` grown by `margin_px` on every side, clipped to the sensor."""
-    x0, y0 = max(window.x0 - margin_px, 0), max(window.y0 - margin_px, 0)
-    x1 = min(window.x0 + window.width + margin_px, sensor.width_px)
-    y1 = min(window.y0 + window.height + margin_px, sensor.height_px)
-    return Window(x0, y0, x1 - x0, y1 - y0)
-
-
 def _metered_exposure(shots: _Shots, in_roi: tuple[slice, ...], darks: DarkFrameCache,
                       sensor: SensorInfo, settings: CaptureSettings) -> float:
     """Ladder exposure putting the ROI peak at target_fraction; the probe if that saturates.
@@ -285,15 +256,18 @@ class Acquisition:
     capture_time_s: float
 
 
-def acquire_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> Acquisition:
-    """Expose the current view as the ROI needs (see the module docstring); decisions look at the ROI only."""
+def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
+                  darks: DarkFrameCache) -> Acquisition | CalibratedAcquisition:
+    """Expose the current view as the ROI needs (see the module docstring); decisions look at the ROI only.
+
+    A camera delivering calibrated luminance takes its own picture, and no darks (calibrated_capture).
+    """
+    if isinstance(camera, CalibratedLuminanceCamera):
+        return acquire_calibrated(camera, settings, darks.clock)
     sensor = camera.sensor
-    if settings.roi_px > min(sensor.width_px, sensor.height_px):
-        raise ValueError(f"roi_px {settings.roi_px} exceeds the {sensor.width_px}×{sensor.height_px} sensor")
+    roi, window = point_windows(camera, settings)
     start_s = darks.clock.now() if darks.clock else 0.0
     darks_before, dark_exposed_before = darks.n_taken, darks.exposed_s
-    roi = Window.centred(sensor.width_px, sensor.height_px, settings.roi_px, settings.roi_px)
-    window = camera.full_window() if settings.full_frame else _grown(roi, settings.window_margin_px, sensor)
     region = window if settings.full_frame else roi
     in_window, in_region = ((slice(None), *window.inner(w)) for w in (roi, region))   # in a frame stack
     shots = _Shots(camera, window)
@@ -330,8 +304,10 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings, darks: Dar
                         else shots.exposed_s + darks.exposed_s - dark_exposed_before))
 
 
-def reduce_point(acq: Acquisition) -> PointCapture:
+def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O."""
+    if isinstance(acq, CalibratedAcquisition):
+        return reduce_calibrated(acq)
     sensor, settings = acq.sensor, acq.settings
     if settings.full_frame:
         merged = merge_exposures(acq.frames, acq.darks, acq.exposures_s, sensor)

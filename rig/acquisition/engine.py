@@ -158,7 +158,9 @@ class Runner:
         if not values.mean() > 0:
             raise DeviceError("meter", f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
                                        " no light on the detector")
-        est = estimate(values, self.rig_time(), self.rig.meter.repeatability_rel, self.rig.meter.calibration_u_rel)
+        range_u = [0.0 if r.range_index is None else self.rig.meter.range_u_rel[r.range_index] for r in readings]
+        est = estimate(values, self.rig_time(), self.rig.meter.repeatability_rel, self.rig.meter.calibration_u_rel,
+                       np.array(range_u))
         self.writer.event("illuminance", illuminance_normal_lx=est.value_lx, u_lx=est.u_lx,
                           readings=est.n, photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
                           calibration_lx_per_a=readings[0].calibration_lx_per_a, rig_time_s=est.rig_time_s)

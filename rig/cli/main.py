@@ -14,7 +14,7 @@ from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.acquisition.execute import RunOutcome, execute, manifest_for
 from rig.acquisition.progress import ProgressBar, format_duration
 from rig.acquisition.resume import prepare_resume
-from rig.cli import bench, export, fit, import_alta, plot
+from rig.cli import bench, export, fit, import_alta, plot, sim
 from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config
@@ -202,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
     p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
     p_dev.set_defaults(func=cmd_devices)
-    for module in (fit, import_alta, export, plot, bench):
+    for module in (fit, import_alta, export, plot, bench, sim):
         module.add_subcommand(sub)
     return parser
 

@@ -124,6 +124,19 @@ class CameraConfig(StrictModel):
 class LampConfig(StrictModel):
     current_a: float = Field(4.17, gt=0, le=100)      # 50 W / 12 V QTH
     ramp_s: float = Field(5.0, ge=0, le=600)      # the supply is stepped every 0.1 s on the way
+    #: The supply's own current limit (SM15K `SYSTem:LIMits:CURrent`), set on connect: no setpoint, ours or
+    #: the front panel's, can exceed it. At least `current_a`.
+    current_limit_a: float = Field(4.6, gt=0, le=100)
+    #: The supply's communication watchdog (SM15K `SYSTem:COMmunicate:WATchdog`, 0.02–10 s), armed while
+    #: rig is connected: if no command arrives for this long (a killed process, a dead PC, a cut cable),
+    #: the supply switches its output off by itself. A keep-alive feeds it during long waits.
+    watchdog_s: float = Field(5.0, ge=0.02, le=10.0)
+
+    @model_validator(mode="after")
+    def _within_limit(self):
+        if self.current_a > self.current_limit_a:
+            raise ValueError(f"current_a ({self.current_a:g} A) exceeds current_limit_a ({self.current_limit_a:g} A)")
+        return self
 
 
 class MeterConfig(StrictModel):
@@ -132,7 +145,14 @@ class MeterConfig(StrictModel):
     calibration_u_rel: Rel = 0.0
     #: Relative standard deviation of one reading, used when only one reading is taken.
     repeatability_rel: Rel = 0.002
-    integration_s: float = Field(0.2, ge=0, le=60)
+    #: The meter's own integration time (P-9710 `SN`: 0.1 ms steps, 0.1 ms … 5.9999 s).
+    integration_s: float = Field(0.2, ge=1e-4, le=5.9999)
+    #: Time the autoranger may add to a reading (range changes settle 2–20 ms each, seven ranges): with
+    #: the integration time it sets how long the driver waits for a reply.
+    autorange_s: float = Field(0.2, ge=0, le=60)
+    #: Relative standard uncertainty a reading has on each range 0 (2 mA full scale) … 7 (200 pA), from the
+    #: meter's certificate (offset, linearity); added to the repeatability for the range each reading used.
+    range_u_rel: tuple[Rel, Rel, Rel, Rel, Rel, Rel, Rel, Rel] = (0.0,) * 8
 
 
 class SimulationConfig(StrictModel):
@@ -265,8 +285,13 @@ class MeterDevice(StrictModel):
     timeout_s: Seconds = 1.0
 
 
+#: The camera of a served simulated rig (`rig sim serve`), reached over docs/sim-camera-protocol.md.
+SERVED_CAMERA = "rig-sim-camera"
+
+
 class CameraDevice(StrictModel):
-    """`simulated`, or `python:package.module:Class` for a vendor-SDK driver (see docs/camera-drivers.md).
+    """`simulated`; `rig-sim-camera` with `options: {address: socket://host:port}` (a served simulated rig);
+    or `python:package.module:Class` for a vendor-SDK driver (see docs/camera-drivers.md).
 
     Only the form is checked here; rig.devices.check_devices imports and checks the class."""
 
@@ -275,8 +300,15 @@ class CameraDevice(StrictModel):
 
     @model_validator(mode="after")
     def _known_driver(self):
-        if self.driver != "simulated" and not re.fullmatch(r"python:[A-Za-z_][\w.]*:[A-Za-z_]\w*", self.driver):
-            raise ValueError(f"camera driver {short(self.driver)}: use 'simulated' or 'python:package.module:Class'")
+        if self.driver == SERVED_CAMERA:
+            address = self.options.get("address")
+            problem = serial_address_problem(address) if isinstance(address, str) else "missing"
+            if problem or not str(address).startswith("socket://") or set(self.options) != {"address"}:
+                raise ValueError(f"camera driver {SERVED_CAMERA} takes exactly options: {{address: socket://host:port}}"
+                                 f" (address: {problem or short(str(address))})")
+        elif self.driver != "simulated" and not re.fullmatch(r"python:[A-Za-z_][\w.]*:[A-Za-z_]\w*", self.driver):
+            raise ValueError(f"camera driver {short(self.driver)}: use 'simulated', '{SERVED_CAMERA}' or "
+                             "'python:package.module:Class'")
         return self
 
 
@@ -295,6 +327,9 @@ POSITIONER_AXES = {"arm": ("arm_azimuth", "arm_polar"), "stage": ("stage_vertica
 class RigConfig(StrictModel):
     name: Annotated[str, StringConstraints(min_length=1, max_length=200), AfterValidator(printable)] = "simulated"
     simulated: bool = True
+    #: Rig seconds per wall second of the devices: 1 for hardware; a served simulated rig (`rig sim serve
+    #: --speed N`) writes N, and the client's clock runs as fast, so its waits shrink alike.
+    time_scale: float = Field(1.0, gt=0, le=1000)
     devices: DevicesConfig = DevicesConfig()
     geometry: GeometryConfig = GeometryConfig()
     axes: AxesConfig = AxesConfig()
@@ -303,6 +338,26 @@ class RigConfig(StrictModel):
     meter: MeterConfig = MeterConfig()
     collisions: CollisionsConfig = CollisionsConfig()
     simulation: SimulationConfig = SimulationConfig()
+
+    @model_validator(mode="after")
+    def _reading_within_watchdog(self):
+        """A meter reading blocks for its integration and autoranging: the lamp's keep-alive cannot run
+        meanwhile, so that must fit well inside the supply's watchdog."""
+        reading_s = self.meter.integration_s + self.meter.autorange_s
+        if reading_s > self.lamp.watchdog_s / 2:
+            raise ValueError(f"meter.integration_s + meter.autorange_s ({reading_s:g} s) must be at most half of "
+                             f"lamp.watchdog_s ({self.lamp.watchdog_s:g} s): a reading blocks the lamp's keep-alive")
+        return self
+
+    @model_validator(mode="after")
+    def _picture_within_watchdog(self):
+        """A vendor camera's picture blocks (the LMK's LabSoft calls do, for all of an HDR series): the lamp's
+        keep-alive cannot run meanwhile, so the longest exposure must fit well inside the watchdog."""
+        if self.devices.camera.driver.startswith("python:") and self.camera.max_exposure_s > self.lamp.watchdog_s / 2:
+            raise ValueError(f"camera.max_exposure_s ({self.camera.max_exposure_s:g} s) must be at most half of "
+                             f"lamp.watchdog_s ({self.lamp.watchdog_s:g} s) with a vendor camera driver: its "
+                             "pictures block the lamp's keep-alive")
+        return self
 
     @model_validator(mode="after")
     def _steps_fit_registers(self):

@@ -15,6 +15,8 @@ class IlluminanceReading:
     illuminance_lx: float
     photocurrent_a: float
     calibration_lx_per_a: float
+    #: The meter's measuring range for this reading (P-9710: 0 = 2 mA full scale … 7 = 200 pA); None if unknown.
+    range_index: int | None = None
 
 
 @dataclass(frozen=True)
@@ -84,3 +86,57 @@ class Progress:
 
 #: Called by the run engine after every point (progress bars, the simulators' fault injection).
 ProgressCallback = Callable[[Progress], None]
+
+
+@dataclass(frozen=True)
+class LuminanceImage:
+    """Calibrated luminance of a window, from a camera that calibrates its own pictures (TechnoTeam LMK).
+
+    Such a camera subtracts its own dark signal and merges its own exposures, so rig gets neither
+    raw counts nor per-pixel variances: only what the camera reports is here.
+    """
+
+    pixels_cd_m2: np.ndarray       # float32, shape (height, width) of `window`, row by row
+    window: Window
+    exposures_s: tuple[float, ...]  # exposure times the camera used, longest first
+    algorithm: str                 # how the camera made the picture: `single` or `high_dynamic`
+    #: Fraction (0…1) of the picture's pixels the camera reports as overflowed (the whole picture,
+    #: not only `window`: the camera captures the full sensor whatever window is read).
+    overflow_fraction: float
+    #: Brightest pixel of the picture / the sensor's range (0…1), if the camera reports it: what a
+    #: single picture is metered on.
+    peak_load: float | None = None
+    #: Which pixels of `window` overflowed, where the camera can tell; None if it only reports a fraction.
+    saturated: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PointCapture:
+    """Result of capturing one point (rig.acquisition.capture): the ROI luminance and how it was obtained.
+
+    The uncertainty components are for the budget table; they are not to be
+    added to u_luminance_cd_m2, which already holds them. u_block (the spread of
+    block means, `rig.physics.roi`) contains the camera noise and the texture:
+    u_block² ≈ u_noise² + u_texture², u_luminance² = u_block² + (u_rel,cal · L)²;
+    and u_noise² = u_frames² + u_dark², where only u_frames is independent from
+    point to point (u_dark is shared by the points that reuse the same darks).
+    A camera delivering calibrated luminance gives no per-pixel variance: there
+    u_noise = u_dark = 0 (unknown, not absent) and u_texture = u_block
+    (rig.acquisition.calibrated_capture).
+    """
+
+    luminance_cd_m2: float
+    u_luminance_cd_m2: float           # block-based ROI uncertainty ⊕ calibration
+    roi_std_cd_m2: float               # pixel standard deviation inside the ROI
+    exposures_s: tuple[float, ...]     # realised exposure times merged
+    saturated_fraction: float          # of ROI pixels, in the longest merged exposure
+    flags: tuple[str, ...]             # `low_signal`, `roi_saturated`
+    image_cd_m2: np.ndarray | None     # whole merged image when full_frame
+    roi_window: Window                 # in sensor coordinates
+    n_frames: int                      # raw frames taken, darks excluded
+    u_noise_cd_m2: float               # camera noise of the ROI mean, from the merge variance
+    u_dark_cd_m2: float                # the part of u_noise due to the subtracted dark frames
+    u_texture_cd_m2: float             # ROI non-uniformity: √max(u_block² − u_noise², 0)
+    capture_time_s: float              # rig time taken (clock), else the summed exposure times
+    n_darks: int                       # dark frames taken for this point

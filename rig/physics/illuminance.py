@@ -36,15 +36,24 @@ class IlluminanceEstimate:
 
 
 def estimate(readings_lx: np.ndarray, rig_time_s: float, repeatability_rel: float,
-             calibration_u_rel: float) -> IlluminanceEstimate:
-    """Mean of readings; the std of one reading pools the observed spread with the meter's spec."""
+             calibration_u_rel: float, range_u_rel: np.ndarray | float = 0.0) -> IlluminanceEstimate:
+    """Mean of readings; the std of one reading pools the observed spread with the meter's spec.
+
+    `range_u_rel` is each reading's relative uncertainty from the meter's range it was taken on
+    (gain and offset of that range, from the certificate). It is the same error for every reading
+    on the range, so it does not average down like the scatter: taken as fully correlated between
+    the readings (conservative when they straddle ranges), it adds |Σ uᵢ·Eᵢ| / n in quadrature to
+    the statistical part. The calibration part stays separate: it is one certificate for all readings.
+    """
     values = np.asarray(readings_lx, float)
     n = values.size
     mean = float(values.mean())
     spec_var = (repeatability_rel * mean) ** 2
     observed_var = float(values.var(ddof=1)) if n >= 2 else 0.0
     pooled_var = ((n - 1) * observed_var + PRIOR_DOF * spec_var) / (n - 1 + PRIOR_DOF)
-    return IlluminanceEstimate(mean, math.sqrt(pooled_var / n), calibration_u_rel * mean, n, rig_time_s)
+    u_range = abs(float(np.sum(np.broadcast_to(np.asarray(range_u_rel, float), values.shape) * values))) / n
+    return IlluminanceEstimate(mean, math.sqrt(pooled_var / n + u_range ** 2), calibration_u_rel * mean, n,
+                               rig_time_s)
 
 
 @dataclass(frozen=True)

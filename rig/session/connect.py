@@ -27,7 +27,7 @@ def open_rig(config: RigConfig, brdf_model: str | None = None,
         sim = SimulatedRig(config, model, params)
         devices, close = sim.start(), sim.stop
     else:
-        devices = connect_devices(config, WallClock())
+        devices = connect_devices(config, WallClock(config.time_scale))
         close = devices.close
     try:
         yield devices

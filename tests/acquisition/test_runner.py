@@ -147,7 +147,7 @@ def test_axis_alarm_stops_cleanly(tmp_path):
 
 @pytest.mark.parametrize("peer, fault", [("arm", "no_reply"), ("stage", "disconnect"), ("arm", "garbled"),
                                          ("lamp", "garbled"), ("lamp", "disconnect"), ("meter", "short"),
-                                         ("meter", "overrange")])
+                                         ("meter", "garbled")])
 def test_transient_protocol_faults_cost_a_retry_event(tmp_path, peer, fault):
     """The lamp's next exchange is switching off at the end, the meter's the next series' E⊥."""
     campaign = small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])

@@ -22,7 +22,7 @@ def test_example_lab_rig_file_loads():
     assert cfg.devices.arm.address.startswith("modbus-tcp://")
     assert cfg.devices.stage.address.startswith("modbus-rtu://")
     assert cfg.devices.lamp.address.endswith(":8462")
-    assert cfg.devices.camera.driver == "python:mylab.lmk:LmkCamera"
+    assert cfg.devices.camera.driver == "python:rig.drivers.lmk:LmkCamera"
 
 
 @pytest.mark.parametrize("change, key, rule", [
@@ -55,8 +55,15 @@ def test_unreachable_device_is_named(tmp_path):
         connect_devices(cfg.model_copy(update={"devices": local}), SimClock())
 
 
-def test_vendor_camera_import_error_is_clear():
+def uninstalled_camera_rig() -> RigConfig:
+    """The example lab's rig with a camera plug-in from a package this machine does not have."""
     cfg = load_rig_config(RIGS / "example-lab.yaml")
+    camera = cfg.devices.camera.model_copy(update={"driver": "python:mylab.lmk:LmkCamera", "options": {}})
+    return cfg.model_copy(update={"devices": cfg.devices.model_copy(update={"camera": camera})})
+
+
+def test_vendor_camera_import_error_is_clear():
+    cfg = uninstalled_camera_rig()
     with pytest.raises(DeviceError, match="cannot load camera driver 'python:mylab.lmk:LmkCamera'"):
         vendor_camera(cfg, cfg.devices.camera)
 
@@ -226,7 +233,8 @@ def test_uninstalled_camera_plugin_is_bad_input_before_connecting():
     from rig.devices import check_devices
 
     with pytest.raises(RigConfigError, match="cannot load camera driver 'python:mylab.lmk:LmkCamera'"):
-        check_devices(load_rig_config(RIGS / "example-lab.yaml"))
+        check_devices(uninstalled_camera_rig())
+    check_devices(load_rig_config(RIGS / "example-lab.yaml"))   # the LMK driver ships with rig
     check_devices(RigConfig())      # the simulated rig brings its own camera
 
 

@@ -34,6 +34,8 @@ class Replay:
     exchanges: list[Exchange]
     now: Callable[[], float] = lambda: 0.0
     written: list[tuple[bytes, float]] = field(default_factory=list)
+    #: The port's timeout (s) at each read: what the driver was prepared to wait for each reply.
+    read_timeouts: list[float | None] = field(default_factory=list)
     opens: int = 0
     _reply: bytes | None = None
     _problems: list[str] = field(default_factory=list)
@@ -62,7 +64,7 @@ class Replay:
     # -- a pyserial port ---------------------------------------------------------------------------
     def open_port(self, url: str, *, baudrate: int, timeout: float, write_timeout: float) -> ReplayPort:
         self.opens += 1
-        return ReplayPort(self)
+        return ReplayPort(self, timeout)
 
     # -- a pymodbus client -------------------------------------------------------------------------
     def open_client(self, url: str, timeout_s: float) -> ReplayModbusClient:
@@ -72,8 +74,9 @@ class Replay:
 class ReplayPort:
     """A pyserial port whose far end is the script: one write is one request."""
 
-    def __init__(self, replay: Replay):
+    def __init__(self, replay: Replay, timeout: float | None = None):
         self.replay = replay
+        self.timeout = timeout
         self.is_open = True
         self._pending: bytes | None = None
 
@@ -89,6 +92,7 @@ class ReplayPort:
         pass
 
     def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        self.replay.read_timeouts.append(self.timeout)
         if self._pending is None:
             self.replay._fail(f"read after {self.replay.written[-1][0]!r}, which has no reply in the script"
                               if self.replay.written else "read before any request")

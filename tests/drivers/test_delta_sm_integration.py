@@ -21,6 +21,9 @@ from rig.simulators.world import SimWorld
 
 FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
 ATTEMPTS = 2
+WATCHDOG_S = 10.0
+#: The rig file's lamp settings the driver gets (the peer is a 15 V / 10 A supply).
+OPTIONS = dict(current_a=4.17, current_limit_a=9.0, watchdog_s=WATCHDOG_S, ramp_s=0.0)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -43,7 +46,11 @@ def peer(world):
 
 @pytest.fixture(scope="module")
 def shared_lamp(peer, world):
-    lamp = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, retry=RetryPolicy(attempts=ATTEMPTS))
+    lamp = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, retry=RetryPolicy(attempts=ATTEMPTS), **OPTIONS)
+    # The fault tests count exchanges: a feed in a retry's back-off would take the injected fault. The
+    # shared driver does not feed (the fixture below stops the watchdog); the watchdog tests at the end
+    # use drivers of their own.
+    lamp._cancel_feed()
     yield lamp
     lamp.close()
 
@@ -60,21 +67,23 @@ def ask(peer: DeltaSMPeer, *lines: str) -> list[str | None]:
 @pytest.fixture
 def lamp(shared_lamp, peer, world, events):
     """The shared driver on a supply reset to its state after connect, with a new, cold lamp."""
-    ask(peer, "*RST", "*CLS", "SYST:REM:CV REM", "SYST:REM:CC REM", f"SOUR:VOLT {peer.max_voltage_v}")
+    ask(peer, "*RST", "OUTP OFF", "*CLS", "SYST:REM:CV REM", "SYST:REM:CC REM", "SYST:LIM:CURR 9,ON",
+        f"SOUR:VOLT {peer.max_voltage_v}", "SYST:COMM:WAT STOP")
     world.lamp.replace()
     shared_lamp.events = lambda kind, **fields: events.append((kind, fields))
     return shared_lamp
 
 
 def test_peer_identity_remote_hand_over_and_close(lamp, peer, world):
-    assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-10,SIM0001,sim-1.0"
+    assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-CP-10,000000000001,SIM_P0150,0"
     ask(peer, "SYST:REM:CV LOC", "SYST:REM:CC LOC", "SOUR:VOLT 0")
-    second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST)
+    second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **OPTIONS)
     assert peer.remote == {"CV": True, "CC": True}
     assert peer.voltage_v == peer.max_voltage_v            # the current setpoint rules
     second.set_output(True)
     second.close()
     assert peer.remote == {"CV": False, "CC": False}       # front panel again...
+    assert not peer.watchdog_armed                         # disarmed at a clean end
     assert peer.output_on                                  # ...and the output left as it was
 
 
@@ -140,7 +149,7 @@ def test_a_fault_after_a_setting_resends_it(lamp, peer, events):
     peer.inject("garbled")                                 # hits the error read after the setting
     lamp.set_current(2.5)
     assert peer.current_a == 2.5
-    assert events[0][1]["what"] == "SOURce:CURrent 2.5"
+    assert events[0][1]["what"] == "SOURce:CURrent 2.5000"
 
 
 def test_error_queue_entry_is_a_persistent_refusal(lamp, peer, events):
@@ -156,15 +165,15 @@ def test_error_queue_entry_is_a_persistent_refusal(lamp, peer, events):
 @pytest.mark.parametrize("current_a", [-0.5, 10.5])
 def test_unreachable_current_is_refused_before_the_ramp_starts(lamp, peer, world, current_a):
     t0 = world.clock.now()
-    with pytest.raises(DeviceError, match=r"current .* A outside the supply's 0 … 10 A"):
+    with pytest.raises(DeviceError, match=r"current .* A outside 0 … 9 A \(the current limit\)"):
         lamp.set_current(current_a, ramp_s=5.0)
     assert peer.current_a == 0.0 and world.clock.now() == t0
 
 
 def test_out_of_range_setting_is_refused_by_the_supply(lamp, monkeypatch):
-    monkeypatch.setattr(lamp, "max_current_a", 20.0)       # a driver that believed a larger supply
-    with pytest.raises(DeviceError, match=r"'SOURce:CURrent 12' refused: -222,Data out of range"):
-        lamp.set_current(12.0)
+    monkeypatch.setattr(lamp, "current_limit_a", 20.0)     # a driver that believed a larger limit
+    with pytest.raises(DeviceError, match=r"'SOURce:CURrent 9.5000' refused: -222,Data out of range"):
+        lamp.set_current(9.5)
 
 
 def test_burn_out_shows_as_no_current_at_the_voltage_limit(lamp, peer, world):
@@ -232,3 +241,58 @@ def test_peer_stop_is_idempotent_and_refuses_unknown_faults():
     assert peer.start().startswith("socket://127.0.0.1:")
     peer.stop()
     peer.stop()
+
+
+# -- the watchdog, end to end ------------------------------------------------------------------------
+@pytest.fixture
+def guarded(peer, world, lamp):
+    """A second driver with a 0.5 s watchdog (the shared one is closed at the module's end)."""
+    guarded = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **(OPTIONS | dict(watchdog_s=0.5)))
+    yield guarded
+    guarded.close()
+
+
+def test_the_keep_alive_keeps_the_output_on_through_long_sleeps(guarded, peer, world):
+    guarded.set_current(4.17)
+    guarded.set_output(True)
+    world.clock.sleep(1.5)                                 # 3 × the watchdog time, no command of ours
+    peer.check_watchdog()
+    assert peer.output_on and peer.watchdog_armed
+
+
+def test_without_feeds_the_supply_switches_itself_off_and_the_driver_hears_of_it(guarded, peer, world, events):
+    guarded.set_current(4.17)
+    guarded.set_output(True)
+    guarded.events = lambda kind, **fields: events.append((kind, fields))
+    world.clock.advance(0.6)                               # the process is frozen: time passes, no feeds
+    peer.check_watchdog()
+    assert not peer.output_on and world.lamp.relative_output() == 0.0
+    world.clock.sleep(0.2)                                 # alive again: the next feed finds it expired
+    assert [kind for kind, _ in events] == ["watchdog_expired"]
+    assert peer.watchdog_armed and not guarded.output_is_on()
+
+
+def test_a_new_session_hears_that_the_previous_one_died(peer, world, lamp, events):
+    first = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **(OPTIONS | dict(watchdog_s=0.5)))
+    first.set_output(True)
+    first.link.close()                                     # kill -9: no close(), the feed stays registered
+    first._cancel_feed()                                   # ...but its process is gone
+    world.clock.advance(1.0)
+    second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **OPTIONS)
+    second.events = lambda kind, **fields: events.append((kind, fields))
+    second.close()
+    assert [kind for kind, _ in events] == ["watchdog_expired_before_connect"]
+    assert not peer.output_on
+
+
+def test_switching_off_ramps_the_current_down_before_output_off(peer, world, lamp):
+    ramping = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **(OPTIONS | dict(ramp_s=5.0)))
+    try:
+        ramping.set_current(4.17)
+        ramping.set_output(True)
+        t0 = world.clock.now()
+        ramping.set_output(False)
+        assert world.clock.now() - t0 == pytest.approx(2.0)       # the switch-off ramp is at most 2 s
+        assert peer.current_a == 0.0 and not peer.output_on
+    finally:
+        ramping.close()

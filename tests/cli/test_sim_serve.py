@@ -1,0 +1,125 @@
+"""`rig sim serve` + `rig run --rig`: the simulated rig as a standalone instrument server, driven like
+hardware from other processes; a client killed with SIGKILL leaves the lamp to the supply's watchdog.
+
+Everything runs as real processes over the real protocol stacks (Modbus/TCP, SCPI over TCP, the meter
+on a pseudo-terminal, the camera protocol of docs/sim-camera-protocol.md). Waits are bounded by
+rig_process.HANG_S as a hang guard, never asserted on.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import signal
+import socket
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+
+from repo_paths import TEST_CAMPAIGNS
+from rig.config.rigfile import load_rig_config
+from rig_process import HANG_S, pending_points, start_rig, wait_until
+
+CAMPAIGN = TEST_CAMPAIGNS / "served.yaml"
+#: Rig seconds per wall second of the served world: the campaign's ~1.5 min of rig time take seconds,
+#: while the 10 s watchdog still leaves the client a second of wall time between two lamp commands.
+SPEED = 10.0
+WATCHDOG_S = 10.0
+
+
+@pytest.fixture
+def served(tmp_path: Path) -> Iterator[tuple[Path, Path, subprocess.Popen]]:
+    """A running `rig sim serve` (its rig file, its stderr log, the process); stopped with SIGTERM afterwards."""
+    base = tmp_path / "base-rig.yaml"
+    base.write_text(yaml.safe_dump({"name": "bench", "lamp": {"watchdog_s": WATCHDOG_S}}))
+    rig_file, log = tmp_path / "served-rig.yaml", tmp_path / "serve.log"
+    with log.open("w") as err:
+        server = start_rig("sim", "serve", "--rig-file", str(rig_file), "--rig", str(base),
+                           "--campaign", str(CAMPAIGN), "--speed", str(SPEED), stderr=err)
+    try:
+        wait_until(rig_file.exists, server, "the served rig file")
+        yield rig_file, log, server
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            out, _ = server.communicate(timeout=HANG_S)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            pytest.fail("rig sim serve did not stop on SIGTERM")
+    assert server.returncode == 0, log.read_text()
+    assert "stopped" in out
+    assert not rig_file.exists()            # its addresses died with it
+
+
+def scpi(address: str, line: str) -> str:
+    """One SCPI query to the served lamp supply, as a separate client would send it."""
+    host, port = address.removeprefix("socket://").rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=HANG_S) as conn:
+        conn.sendall(line.encode() + b"\n")
+        reply = b""
+        while not reply.endswith(b"\n"):
+            chunk = conn.recv(100)
+            assert chunk, f"the supply closed the connection instead of answering {line!r}"
+            reply += chunk
+    return reply.decode().strip()
+
+
+def brdf_rows(folder: Path) -> list[dict[str, str]]:
+    with (folder / "brdf.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def test_the_served_rig_file_is_hardware_to_its_clients(served):
+    rig_file, _, _ = served
+    rig = load_rig_config(rig_file)
+    assert not rig.simulated and rig.time_scale == pytest.approx(SPEED)
+    assert rig.lamp.watchdog_s == pytest.approx(WATCHDOG_S)
+    assert rig.devices.lamp.address.startswith("socket://127.0.0.1:")
+    assert rig.devices.arm.address.startswith("modbus-tcp://127.0.0.1:")
+    assert rig.devices.meter.address.startswith("/dev/")
+    assert rig.devices.camera.driver == "rig-sim-camera"
+    assert "simulation" not in yaml.safe_load(rig_file.read_text())
+    devices = start_rig("devices", str(rig_file))
+    out, err = devices.communicate(timeout=HANG_S)
+    assert devices.returncode == 0, err
+    assert "hardware" in out and "DELTA ELEKTRONIKA" in out.upper()
+
+
+def test_kill_9_leaves_the_lamp_to_the_watchdog_and_resume_completes(served, tmp_path):
+    rig_file, log, server = served
+    lamp = load_rig_config(rig_file).devices.lamp.address
+    out = tmp_path / "run"
+    run = start_rig("run", str(CAMPAIGN), "--rig", str(rig_file), "--out", str(out), "--quiet")
+    wait_until(lambda: pending_points(out) >= 4, run, "four points measured")
+
+    # A second client while the campaign runs is refused, before it touches any device.
+    second = start_rig("devices", str(rig_file))
+    _, err = second.communicate(timeout=HANG_S)
+    assert second.returncode == 1 and re.search(r"busy|in use", err, re.I), err
+    assert run.poll() is None, "the first client must not notice the second"
+
+    run.send_signal(signal.SIGKILL)                  # no exit path runs: the lamp stays on ...
+    run.wait(timeout=HANG_S)
+    wait_until(lambda: "watchdog" in log.read_text(), server, "the watchdog switching the lamp off")
+    assert scpi(lamp, "OUTPut?") == "0"              # ... until the supply's watchdog switches it off
+    off = re.search(r"watchdog at rig time [\d.]+ s, ([\d.]+) s after the last command", log.read_text())
+    assert off is not None, log.read_text()
+    # Off when the watchdog time was up, give or take the server loop's tick (5 ms of wall time, 0.05 s of rig
+    # time at this speed) and a loaded machine's scheduling.
+    assert WATCHDOG_S <= float(off.group(1)) <= WATCHDOG_S + 1.0
+
+    resume = start_rig("run", "--resume", str(out), "--quiet")
+    _, err = resume.communicate(timeout=HANG_S)
+    assert resume.returncode == 0, err
+    manifest = json.loads((out / "dataset.json").read_text())
+    ids = [row["point_id"] for row in brdf_rows(out)]
+    assert len(ids) == len(set(ids)), "a point was written twice"
+    assert manifest["status"] == "complete"
+    assert len(ids) == manifest["counts"]["planned"] == manifest["counts"]["measured"] == 16
+    assert scpi(lamp, "OUTPut?") == "0"              # a clean end switched it off and disarmed the watchdog
+    assert scpi(lamp, "SYSTem:COMmunicate:WATchdog?") == "-1"
+
