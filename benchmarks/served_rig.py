@@ -75,8 +75,8 @@ def main() -> int:
                 print(f"{campaign.name:28s} {name:10s}: {m['status']}, {m['counts']['measured']} points, "
                       f"rig time {m['rig_time_s'] / 60:6.1f} min, wall {wall:6.1f} s")
             print(f"{'':28s} served / in-process: rig time {served['rig_time_s'] / local['rig_time_s']:.2f}×, "
-                  f"wall {served_wall / local_wall:.2f}×; server log: {log.strip().count(chr(10)) + bool(log.strip())} "
-                  "lines")
+                  f"wall {served_wall / local_wall:.2f}×; lamp watchdog expiries in the served run: "
+                  f"{log.count('communication watchdog')}")
             ok &= served["status"] == local["status"] == "complete"
             ok &= served["counts"]["measured"] == local["counts"]["measured"]
     return 0 if ok else 1

@@ -73,10 +73,12 @@ class LineInstrument(RetryingDevice):
         self.link.write_line(line)
         return line
 
-    def ask(self, query: Query[T], *args: object) -> T:
-        """One query; a reply `parse` rejects is a transient DeviceError naming command and reply."""
+    def ask(self, query: Query[T], *args: object, timeout_s: float | None = None) -> T:
+        """One query; a reply `parse` rejects is a transient DeviceError naming command and reply.
+        `timeout_s` replaces the link's timeout for this reply (a slow measurement)."""
         line = query.text(*args)
-        reply = self.link.query(line)
+        reply = self.link.query(line, timeout_s)
+        self.check_refusal(line, reply)
         try:
             return query.parse(reply)
         except UnexpectedReply as exc:
@@ -84,6 +86,10 @@ class LineInstrument(RetryingDevice):
         except ValueError:
             message = f"garbled reply to {line!r}: {reply!r}"
         raise DeviceError(self.name, message, transient=True)
+
+    def check_refusal(self, line: str, reply: str) -> None:
+        """Raise the instrument's own error reply (e.g. the P-9710's `?x`) as a persistent DeviceError;
+        the default: the instrument has none (a refusal then shows elsewhere, e.g. an error queue)."""
 
     # -- under the retry policy -------------------------------------------------------------------
     def query(self, query: Query[T], *args: object) -> T:

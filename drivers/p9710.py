@@ -22,7 +22,6 @@ TS, TE, SF, TA, RA) are never sent.
 from __future__ import annotations
 
 import re
-from typing import TypeVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -31,8 +30,6 @@ from rig.drivers.interfaces import IlluminanceMeter
 from rig.drivers.line_instrument import LineInstrument, Query, Setting, UnexpectedReply
 from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
-
-T = TypeVar("T")
 
 #: §15.4: the bits of an error reply `?x`.
 ERROR_BITS = {
@@ -158,19 +155,9 @@ class P9710(LineInstrument, IlluminanceMeter):
         """Send a setting and read its acknowledgement (a bare LF; `?x` is a persistent error)."""
         self.ask(Query(setting.template, acknowledged, setting.unit), *args)
 
-    def ask(self, query: Query[T], *args: object, timeout_s: float | None = None) -> T:
-        """One exchange, no retry: `?x` is a persistent DeviceError naming the code's meaning; a reply
-        `parse` rejects is a transient one. `timeout_s` replaces the link's for this reply."""
-        line = query.text(*args)
-        reply = self.link.query(line, timeout_s)
+    def check_refusal(self, line: str, reply: str) -> None:
+        """`?x` is the meter's verdict: a persistent DeviceError naming the code's meaning."""
         self._heard = True
         refused = _ERROR_REPLY.fullmatch(reply)
         if refused:
             raise DeviceError(self.name, f"{line!r} answered {reply!r}: {error_meaning(int(refused[1]))}")
-        try:
-            return query.parse(reply)
-        except UnexpectedReply as exc:
-            message = exc.message.format(command=line, reply=reply)
-        except ValueError:
-            message = f"garbled reply to {line!r}: {reply!r}"
-        raise DeviceError(self.name, message, transient=True)

@@ -20,8 +20,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from repo_paths import TEST_CAMPAIGNS
+from repo_paths import CAMPAIGNS, TEST_CAMPAIGNS
+from rig.config.campaign import load_campaign
 from rig.config.rigfile import load_rig_config
+from rig.simulators.served import PAPER_RM1
 from rig_process import HANG_S, pending_points, start_rig, wait_until
 
 CAMPAIGN = TEST_CAMPAIGNS / "served.yaml"
@@ -123,3 +125,26 @@ def test_kill_9_leaves_the_lamp_to_the_watchdog_and_resume_completes(served, tmp
     assert scpi(lamp, "OUTPut?") == "0"              # a clean end switched it off and disarmed the watchdog
     assert scpi(lamp, "SYSTem:COMmunicate:WATchdog?") == "-1"
 
+
+
+def test_the_default_sample_is_the_paper_campaigns_rm1():
+    truth = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml").sample.simulated_brdf
+    assert truth is not None and (truth.model, truth.params) == (PAPER_RM1[0], pytest.approx(PAPER_RM1[1]))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--speed", "0"], "--speed 0: must be above 0"),
+    (["--speed", "5000"], "at most 1000"),
+    (["--campaign", "nowhere.yaml"], "nowhere.yaml"),
+])
+def test_bad_serve_options_are_refused_before_serving(tmp_path, args, message):
+    proc = start_rig("sim", "serve", "--rig-file", str(tmp_path / "r.yaml"), *args)
+    _, err = proc.communicate(timeout=HANG_S)
+    assert proc.returncode == 2 and message in err, err
+    assert not (tmp_path / "r.yaml").exists()
+
+
+def test_a_rig_file_in_a_missing_folder_is_refused(tmp_path):
+    proc = start_rig("sim", "serve", "--rig-file", str(tmp_path / "no" / "r.yaml"))
+    _, err = proc.communicate(timeout=HANG_S)
+    assert proc.returncode == 2 and "does not exist" in err, err

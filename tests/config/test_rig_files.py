@@ -32,6 +32,18 @@ def test_example_lab_rig_file_loads():
      "axes.arm_polar", "low < high"),
     ({"geometry": {"camera_distance_m": -1}}, "geometry.camera_distance_m", "greater than 0"),
     ({"meter": {"calibration": 3}}, "meter.calibration", "allowed here: calibration_lx_per_a"),
+    ({"lamp": {"current_a": 5.0, "current_limit_a": 4.6}}, "lamp", "exceeds current_limit_a"),
+    ({"lamp": {"watchdog_s": 30}}, "lamp.watchdog_s", "less than or equal to 10"),
+    ({"lamp": {"watchdog_s": 0.01}}, "lamp.watchdog_s", "greater than or equal to 0.02"),
+    ({"meter": {"integration_s": 6}}, "meter.integration_s", "less than or equal to 5.9999"),
+    ({"meter": {"integration_s": 2, "autorange_s": 1}, "lamp": {"watchdog_s": 5}}, "(top level)",
+     "blocks the lamp's keep-alive"),
+    ({"devices": {"camera": {"driver": "python:rig.drivers.lmk:LmkCamera"}}}, "(top level)",
+     "camera.max_exposure_s (15 s) must be at most half of lamp.watchdog_s"),
+    ({"devices": {"camera": {"driver": "rig-sim-camera", "options": {"address": "/dev/ttyS0"}}}}, "devices.camera",
+     "takes exactly options: {address: socket://host:port}"),
+    ({"time_scale": 0}, "time_scale", "greater than 0"),
+    ({"meter": {"range_u_rel": [0.01, 0.01]}}, "meter.range_u_rel[2]", "missing key"),
 ])
 def test_bad_rig_file(tmp_path, change, key, rule):
     f = tmp_path / "rig.yaml"

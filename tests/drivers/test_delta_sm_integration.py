@@ -296,3 +296,15 @@ def test_switching_off_ramps_the_current_down_before_output_off(peer, world, lam
         assert peer.current_a == 0.0 and not peer.output_on
     finally:
         ramping.close()
+
+
+def test_the_peer_passes_the_drivers_replays():
+    """The exchanges the driver's in-memory tests script (from the manual's examples) are what the rebuilt
+    peer answers, line for line, when it is configured as the manual's example supply."""
+    from test_delta_sm import CLOSE, CONNECT, IDN
+
+    maker, model, serial, firmware, _ = IDN.split(",")
+    peer = DeltaSMPeer(SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}), model=model, serial=serial,
+                       firmware=firmware, max_voltage_v=500.0, max_current_a=90.0)
+    for line, reply in CONNECT + CLOSE:
+        assert peer.answer(line.encode("ascii")) == reply, line
