@@ -43,7 +43,7 @@ from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import LuminanceImage, PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera
-from rig.physics.roi import roi_statistics
+from rig.physics.roi import point_flags, roi_statistics
 
 #: Single pictures taken at most to meter one.
 METERING_STEPS = 4
@@ -141,18 +141,13 @@ def reduce_calibrated(acq: CalibratedAcquisition) -> PointCapture:
         saturated_fraction = float(np.mean(image.saturated[in_roi]))
     else:
         saturated_fraction = image.overflow_fraction
-    flags = []
-    if stats.mean <= settings.min_snr * stats.u_mean:
-        flags.append("low_signal")
-    if saturated_fraction > 0:
-        flags.append("roi_saturated")
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=float(np.hypot(stats.u_mean, acq.calibration_u_rel * stats.mean)),
         roi_std_cd_m2=stats.std,
         exposures_s=image.exposures_s,
         saturated_fraction=saturated_fraction,
-        flags=tuple(flags),
+        flags=point_flags(stats, settings.min_snr, saturated_fraction > 0),
         image_cd_m2=image.pixels_cd_m2 if settings.full_frame else None,
         roi_window=acq.roi,
         n_frames=acq.n_frames,

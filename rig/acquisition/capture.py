@@ -51,7 +51,7 @@ from rig.core.errors import DeviceError
 from rig.core.values import Frame, PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera
 from rig.physics.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
-from rig.physics.roi import mean_noise, roi_statistics
+from rig.physics.roi import mean_noise, point_flags, roi_statistics
 
 #: Metering frames taken at most before the metered exposure is accepted.
 MAX_METERING_STEPS = 4
@@ -318,18 +318,13 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     cal = sensor.calibration_cd_m2_per_dn_s
     luminance = merged.rate_dn_s * cal
     stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal ** 2)
-    flags = []
-    if stats.mean <= settings.min_snr * stats.u_mean:
-        flags.append("low_signal")
-    if np.any(merged.clipped[in_merged]):
-        flags.append("roi_saturated")
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=float(np.hypot(stats.u_mean, sensor.calibration_u_rel * stats.mean)),
         roi_std_cd_m2=stats.std,
         exposures_s=acq.exposures_s,
         saturated_fraction=float(np.mean(merged.saturated[in_merged])),
-        flags=tuple(flags),
+        flags=point_flags(stats, settings.min_snr, bool(np.any(merged.clipped[in_merged]))),
         image_cd_m2=luminance if settings.full_frame else None,
         roi_window=acq.roi,
         n_frames=acq.n_frames,

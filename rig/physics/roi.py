@@ -91,3 +91,15 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
                     u_mean_noise=mean_noise(variance),
                     std=float(image.std(ddof=1)),
                     n=n, n_blocks=int(means.size))
+
+
+def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:
+    """Flags of a point's ROI luminance: `low_signal` when its mean is within `min_snr` standard
+    uncertainties of zero (a value the data barely distinguish from none), `roi_saturated` when ROI pixels
+    clipped (the mean is then a lower bound)."""
+    flags = []
+    if stats.mean <= min_snr * stats.u_mean:
+        flags.append("low_signal")
+    if saturated:
+        flags.append("roi_saturated")
+    return tuple(flags)

@@ -14,18 +14,16 @@ from dataclasses import asdict
 
 import numpy as np
 import pytest
+from sim_worlds import lit_world
 
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
 from rig.core.values import Window
 from rig.drivers.sim_camera import ServedCamera, parse_address
 from rig.drivers.wallclock import WallClock
-from rig.physics.brdf_models import get_model
-from rig.physics.geometry import AXIS_NAMES, inverse_deg
 from rig.simulators.camera import SimCamera
 from rig.simulators.camera_server import CameraServer
 from rig.simulators.clock import SimClock
-from rig.simulators.world import SimWorld
 
 SENSOR = RigConfig().camera.sensor_info()
 OPENING = [(b"HELLO rig-sim-camera/1\n", b"OK rig-sim-camera/1 scripted camera\n"),
@@ -174,15 +172,6 @@ def test_nothing_listening_is_a_transient_error_naming_the_address():
 
 
 # --- against the served simulated camera --------------------------------------------------------
-
-def lit_world(clock=None) -> SimWorld:
-    """A lit rig posed at (θi, φi, θo, φo) = (30, 0, 20, 90)°."""
-    world = SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}, clock=clock)
-    world.lamp.set_current(world.config.lamp.current_a, 0)
-    world.lamp.switch(True)
-    for name, value in zip(AXIS_NAMES, inverse_deg(30, 0, 20, 90).as_array()):
-        world.axis_truth[name] = lambda value=float(value): value
-    return world
 
 
 def test_served_frames_are_the_in_process_cameras_frames():

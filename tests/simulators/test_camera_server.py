@@ -10,28 +10,16 @@ from dataclasses import asdict
 
 import numpy as np
 import pytest
+from sim_worlds import lit_world
 
-from rig.config.rigfile import RigConfig
 from rig.core.values import Window
 from rig.drivers.wallclock import WallClock
-from rig.physics.brdf_models import get_model
-from rig.physics.geometry import AXIS_NAMES, inverse_deg
 from rig.simulators.camera import SimCamera
 from rig.simulators.camera_server import CameraServer
-from rig.simulators.world import SimWorld
 
 HELLO = b"HELLO rig-sim-camera/1"
 IDENTITY = "simulated LMK 98-4 (rig sim)"
 
-
-def lit_world(clock=None) -> SimWorld:
-    """A lit rig posed at (θi, φi, θo, φo) = (30, 0, 20, 90)°, so that frames show the sample."""
-    world = SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}, clock=clock)
-    world.lamp.set_current(world.config.lamp.current_a, 0)
-    world.lamp.switch(True)
-    for name, value in zip(AXIS_NAMES, inverse_deg(30, 0, 20, 90).as_array()):
-        world.axis_truth[name] = lambda value=float(value): value
-    return world
 
 
 class Client:
