@@ -136,6 +136,12 @@ class DeltaSM(LineInstrument, LampSupply):
         self._cancel_feed: Callable[[], None] | None = clock.keep_alive(
             self.watchdog_ms / 1000 / FEEDS_PER_PERIOD, self._feed_watchdog)
 
+    @classmethod
+    def from_rig(cls, *, clock: Clock, settings: Any, address: str, timeout_s: float = 1.0) -> DeltaSM:
+        """The rig-file contract (rig.drivers.registry): `settings` is the rig file's `lamp` section."""
+        return cls(address, clock=clock, timeout_s=timeout_s, current_a=settings.current_a,
+                   current_limit_a=settings.current_limit_a, watchdog_s=settings.watchdog_s, ramp_s=settings.ramp_s)
+
     def _connect(self, current_a: float, compliance_v: float | None) -> None:
         identity = self.query(IDENTITY)
         if MAKER not in identity.upper():

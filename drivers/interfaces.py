@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
+from typing import ClassVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -121,6 +122,8 @@ class TwoAxisPositioner:
 class LampSupply(Device, abc.ABC):
     """DC supply of the halogen lamp, driven in constant-current mode."""
 
+    ROLE: ClassVar[str] = "lamp"          # its role among installed drivers (rig.drivers.registry)
+
     @abc.abstractmethod
     def identity(self) -> str: ...
 
@@ -144,6 +147,8 @@ class LampSupply(Device, abc.ABC):
 class IlluminanceMeter(Device, abc.ABC):
     """Optometer reading E⊥ at the sample position (perpendicular incidence)."""
 
+    ROLE: ClassVar[str] = "meter"          # its role among installed drivers (rig.drivers.registry)
+
     @abc.abstractmethod
     def identity(self) -> str: ...
 
@@ -155,6 +160,8 @@ class IlluminanceMeter(Device, abc.ABC):
 class LuminanceCamera(Device, abc.ABC):
     """Calibrated luminance camera: raw frames plus the calibration to cd/m² (or, a
     `CalibratedLuminanceCamera`, luminance pictures it calibrates itself)."""
+
+    ROLE: ClassVar[str] = "camera"          # its role among installed drivers (rig.drivers.registry)
 
     sensor: SensorInfo
 

@@ -150,6 +150,12 @@ class LmkCamera(CalibratedLuminanceCamera):
         return f"{text} ({KNOWN_CODES[code]})" if code in KNOWN_CODES else text
 
     # -- the camera -----------------------------------------------------------------------------
+    @classmethod
+    def from_rig(cls, *, clock: Any, settings: CameraSection, **options: Any) -> LmkCamera:
+        """The rig-file contract (rig.drivers.registry): `settings` is the rig file's `camera` section;
+        LabSoft's calls block, so no clock is needed."""
+        return cls(settings, **options)
+
     def identity(self) -> str:
         return f"TechnoTeam {self._name}"
 

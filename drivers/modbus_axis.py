@@ -17,8 +17,9 @@ exchange of exact PDUs in memory.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any, ClassVar
 from urllib.parse import parse_qs
 
 from pymodbus import FramerType
@@ -30,7 +31,7 @@ from pymodbus.pdu import ModbusPDU
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.motion import move_time_s
-from rig.drivers.interfaces import Axis
+from rig.drivers.interfaces import Axis, TwoAxisPositioner
 from rig.drivers.modbus_axis_map import (
     ALARMS,
     IDENTITY_REGS,
@@ -91,6 +92,24 @@ def _exception_name(code: int) -> str:
 
 class ModbusAxisController(RetryingDevice):
     """One Modbus device (controller) with up to a few axes; owns the connection."""
+
+    ROLE: ClassVar[str] = "positioner"          # its role among installed drivers (rig.drivers.registry)
+
+    @classmethod
+    def from_rig(cls, *, clock: Clock, settings: Mapping[str, Any], name: str, address: str, device_id: int = 1,
+                 steps_per_degree: float = 1000.0, timeout_s: float = 1.0) -> TwoAxisPositioner:
+        """The rig-file contract (rig.drivers.registry) for a positioner: `settings` maps the positioner's two
+        axis names, in controller axis order, to their rig-file sections (speed, acceleration, settling).
+        Connects at once: a wrong address fails here, not at the first move."""
+        controller = cls(address, device_id=device_id, name=name, clock=clock, timeout_s=timeout_s)
+        try:
+            controller.identity()
+        except BaseException:
+            controller.close()
+            raise
+        axes = [controller.axis(index, axis_name, steps_per_degree, cfg.speed_deg_s, cfg.accel_deg_s2, cfg.settle_s)
+                for index, (axis_name, cfg) in enumerate(settings.items())]
+        return TwoAxisPositioner(name, axes[0], axes[1])
 
     def __init__(self, url: str, *, device_id: int = 1, name: str, clock: Clock, timeout_s: float = 1.0,
                  retry: RetryPolicy = DEFAULT_RETRY, open_client: ClientOpener = modbus_client):

@@ -22,6 +22,7 @@ TS, TE, SF, TA, RA) are never sent.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -121,6 +122,12 @@ class P9710(LineInstrument, IlluminanceMeter):
             # Outside the "Remote RS232" mode the meter takes no commands: the likeliest silence at connect.
             raise DeviceError(self.name, f"{str(exc).removeprefix(f'{self.name}: ')} (is the meter's menu Mode "
                                          f"set to \"Remote RS232\"?)", unanswered=True) from exc
+
+    @classmethod
+    def from_rig(cls, *, clock: Clock, settings: Any, address: str, timeout_s: float = 1.0) -> P9710:
+        """The rig-file contract (rig.drivers.registry): `settings` is the rig file's `meter` section."""
+        return cls(address, calibration_lx_per_a=settings.calibration_lx_per_a, clock=clock, timeout_s=timeout_s,
+                   integration_s=settings.integration_s, autorange_s=settings.autorange_s)
 
     # -- IlluminanceMeter ----------------------------------------------------------------------
     def identity(self) -> str:

@@ -11,6 +11,7 @@ import json
 import math
 import socket
 from io import BufferedReader
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +48,11 @@ class ServedCamera(LuminanceCamera):
         self._stream: BufferedReader | None = None
         self._closed = False
         self._connect()
+
+    @classmethod
+    def from_rig(cls, *, clock: Clock, settings: Any, address: str) -> ServedCamera:
+        """The rig-file contract (rig.drivers.registry): the sensor comes from the server, not `settings`."""
+        return cls(address, clock=clock)
 
     def identity(self) -> str:
         return self._identity

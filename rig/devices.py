@@ -1,4 +1,11 @@
-"""Connect the five devices named in a rig configuration."""
+"""Connect the five devices named in a rig configuration, each through its registered driver.
+
+Every device entry names a driver installed in the entry-point group `rig.drivers`
+(rig.drivers.registry), rig's own included, and is built by the driver's
+`from_rig(*, clock, settings, **options)`: `settings` is the rig file's section for
+its role, the options are the entry's typed keys (rig's own drivers) or its own keys
+(a plug-in). A `python:package.module:Class` camera is the older plug-in form.
+"""
 
 from __future__ import annotations
 
@@ -6,42 +13,65 @@ import importlib
 import inspect
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from rig.config.files import clip
-from rig.config.rigfile import (
-    POSITIONER_AXES,
-    SERVED_CAMERA,
-    CameraConfig,
-    CameraDevice,
-    PositionerDevice,
-    RigConfig,
-    RigConfigError,
-)
+from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, CameraDevice, DeviceEntry
+from rig.config.rigfile import CameraConfig, RigConfig, RigConfigError
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
-from rig.drivers.delta_sm import DeltaSM
-from rig.drivers.interfaces import LuminanceCamera, RigDevices, TwoAxisPositioner
-from rig.drivers.modbus_axis import ModbusAxisController
-from rig.drivers.p9710 import P9710
-from rig.drivers.sim_camera import ServedCamera
+from rig.drivers.interfaces import LuminanceCamera, RigDevices
+from rig.drivers.registry import driver_class
 
 __all__ = ["POSITIONER_AXES", "camera_class", "check_devices", "connect_devices", "vendor_camera"]
 
 
-def _positioner(config: RigConfig, which: str, dev: PositionerDevice, clock: Clock) -> TwoAxisPositioner:
-    controller = ModbusAxisController(dev.address, device_id=dev.device_id, name=which, clock=clock,
-                                      timeout_s=dev.timeout_s)
+#: The role of each device entry (rig.drivers.registry.ROLES).
+ROLE_OF = {"arm": "positioner", "stage": "positioner", "lamp": "lamp", "meter": "meter", "camera": "camera"}
+
+
+def _settings(config: RigConfig, which: str) -> Any:
+    """The rig-file section a driver's `from_rig` gets: its role's section; a positioner's two axes by name."""
+    if ROLE_OF[which] == "positioner":
+        return {axis: getattr(config.axes, axis) for axis in POSITIONER_AXES[which]}
+    return getattr(config, which)
+
+
+def _registered(which: str, entry: DeviceEntry) -> Callable[..., Any]:
+    """The registered driver's `from_rig` for a device entry, with the entry's options bound to it checked;
+    RigConfigError (bad input) naming the key if it is not installed or does not take them."""
+    key = f"key 'devices.{which}.driver'"
     try:
-        controller.identity()    # connect now: a wrong address should fail here, not at the first move
-    except BaseException:
-        controller.close()
+        cls = driver_class(ROLE_OF[which], entry.driver)
+    except LookupError as exc:
+        raise RigConfigError(f"{key}: {exc}") from None
+    fixed = {"clock": None, "settings": None, **({"name": which} if ROLE_OF[which] == "positioner" else {})}
+    options = entry.driver_options()
+    try:
+        inspect.signature(cls.from_rig).bind(**fixed, **options)
+    except TypeError as exc:
+        raise RigConfigError(f"{key}: driver {entry.driver!r} does not take the options "
+                             f"{', '.join(options) or '(none)'}: {clip(str(exc), 200)}") from None
+    build: Callable[..., Any] = cls.from_rig
+    return build
+
+
+def _connect(config: RigConfig, which: str, clock: Clock) -> Any:
+    """Build and connect one device through its registered driver; a failure that is not the driver's own
+    DeviceError (a vendor SDK's exception) becomes one naming the device."""
+    entry = getattr(config.devices, which)
+    try:
+        build = _registered(which, entry)
+    except RigConfigError as exc:
+        raise DeviceError(which, str(exc)) from None
+    extra = {"name": which} if ROLE_OF[which] == "positioner" else {}
+    try:
+        return build(clock=clock, settings=_settings(config, which), **extra, **entry.driver_options())
+    except DeviceError:
         raise
-    axes = []
-    for index, axis_name in enumerate(POSITIONER_AXES[which]):
-        cfg = getattr(config.axes, axis_name)
-        axes.append(controller.axis(index, axis_name, dev.steps_per_degree, cfg.speed_deg_s,
-                                    cfg.accel_deg_s2, cfg.settle_s))
-    return TwoAxisPositioner(which, *axes)
+    except Exception as exc:        # the plug-in's own exceptions: the device did not start
+        raise DeviceError(which, f"driver {entry.driver!r} failed to start: {type(exc).__name__}: "
+                                 f"{clip(str(exc), 200)}") from None
 
 
 def camera_class(dev: CameraDevice, camera: CameraConfig) -> type[LuminanceCamera]:
@@ -79,15 +109,22 @@ def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
         return
     try:
         _check_addresses(config)
-        if config.devices.camera.driver != SERVED_CAMERA:
-            camera_class(config.devices.camera, config.camera)
+        for which in ROLE_OF:
+            entry = getattr(config.devices, which)
+            if which == "camera" and entry.driver.startswith("python:"):
+                camera_class(entry, config.camera)
+            elif entry.driver != "simulated":
+                _registered(which, entry)
+            else:
+                camera_class(entry, config.camera)      # says the simulated camera needs the simulated rig
     except RigConfigError as exc:
         raise RigConfigError(f"{source}: {exc}") from None
 
 
 def _check_addresses(config: RigConfig) -> None:
     for name in ("arm", "stage", "lamp", "meter"):
-        if getattr(config.devices, name).address == "auto":
+        entry = getattr(config.devices, name)
+        if entry.driver == entry.BUILTIN and entry.address == "auto":
             raise RigConfigError(f"key 'devices.{name}.address': address 'auto' only works on the simulated rig; "
                                  "give the device's address")
 
@@ -120,22 +157,19 @@ def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | N
         if camera is None and d.camera.driver == SERVED_CAMERA:
             # First: the served rig's camera session is what refuses a second client, before any other
             # device of the rig has been touched.
-            camera = ServedCamera(d.camera.options["address"], clock=clock)
+            camera = _connect(config, "camera", clock)
             opened.append(camera)
-        arm = _positioner(config, "arm", d.arm, clock)
+        arm = _connect(config, "arm", clock)
         opened.append(arm)
-        stage = _positioner(config, "stage", d.stage, clock)
+        stage = _connect(config, "stage", clock)
         opened.append(stage)
-        lamp = DeltaSM(d.lamp.address, clock=clock, timeout_s=d.lamp.timeout_s, current_a=config.lamp.current_a,
-                       current_limit_a=config.lamp.current_limit_a, watchdog_s=config.lamp.watchdog_s,
-                       ramp_s=config.lamp.ramp_s)
+        lamp = _connect(config, "lamp", clock)
         opened.append(lamp)
-        meter = P9710(d.meter.address, calibration_lx_per_a=config.meter.calibration_lx_per_a, clock=clock,
-                      timeout_s=d.meter.timeout_s, integration_s=config.meter.integration_s,
-                      autorange_s=config.meter.autorange_s)
+        meter = _connect(config, "meter", clock)
         opened.append(meter)
         if camera is None:
-            camera = vendor_camera(config, d.camera)
+            camera = vendor_camera(config, d.camera) if d.camera.driver.startswith("python:") else \
+                _connect(config, "camera", clock)
         return RigDevices(arm=arm, stage=stage, lamp=lamp, meter=meter, camera=camera, clock=clock,
                           simulated=config.simulated)
     except BaseException:

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import yaml
 
-from rig.config.rigfile import SERVED_CAMERA, RigConfig
+from rig.config.rigdevices import SERVED_CAMERA
+from rig.config.rigfile import RigConfig
 from rig.drivers.wallclock import WallClock
 from rig.physics.brdf_models import get_model
 from rig.simulators.camera_server import CameraServer

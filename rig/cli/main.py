@@ -25,6 +25,7 @@ from rig.data.dataset_format import DatasetError
 from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
 from rig.drivers.interfaces import RigDevices
+from rig.drivers.registry import installed_drivers
 from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
 from rig.planning.points import Plan, describe_reason
 from rig.session.connect import open_campaign_rig, open_rig
@@ -92,6 +93,13 @@ def print_devices(devices: RigDevices) -> None:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
+    if args.list:
+        print(f"{'driver':16s} {'role':12s} class  (package)")
+        for driver in installed_drivers():
+            print(driver.describe())
+        return EXIT_OK
+    if not args.rig_file:
+        return fail("give a rig file, or --list")
     try:
         rig = load_rig_config(args.rig_file)
         check_devices(rig, args.rig_file)
@@ -200,7 +208,9 @@ def build_parser() -> argparse.ArgumentParser:
     p_plan.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
     p_plan.set_defaults(func=cmd_plan)
     p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
-    p_dev.add_argument("rig_file", metavar="RIG.yaml", help="rig file, e.g. campaigns/rigs/simulated.yaml")
+    p_dev.add_argument("rig_file", metavar="RIG.yaml", nargs="?", help="rig file, e.g. campaigns/rigs/simulated.yaml")
+    p_dev.add_argument("--list", action="store_true",
+                       help="list every installed driver (entry-point group rig.drivers): name, role, class, package")
     p_dev.set_defaults(func=cmd_devices)
     for module in (fit, import_alta, export, plot, bench, sim):
         module.add_subcommand(sub)

@@ -15,15 +15,14 @@ rig.devices.check_devices before connecting.
 
 from __future__ import annotations
 
-import re
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated
 
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
 from rig.config.capture import MAX_EXPOSURE_S
-from rig.config.files import ConfigFileError, parse_model, printable, read_yaml, short
+from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
+from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, DevicesConfig
 from rig.config.strict import StrictModel
 from rig.config.zones import CollisionsConfig
 from rig.core.values import SensorInfo
@@ -187,143 +186,6 @@ class SimulationConfig(StrictModel):
     ambient_cd_m2: float = Field(0.0, ge=0, le=1e6)              # stray light on unlit parts
 
 
-# -- device addresses ------------------------------------------------------------------------
-_HOST_PORT = re.compile(r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?):(\d{1,5})")
-#: pyserial URL handlers (serial_for_url) and whether they need host:port.
-_SERIAL_URLS = {"socket": True, "rfc2217": True, "loop": False, "spy": False, "alt": False, "hwgrep": False,
-                "cp2110": False}
-_SERIAL_PATH = re.compile(r"/[^\s?#]+|COM[1-9]\d{0,2}|\\\\\.\\COM[1-9]\d{0,2}")
-#: Modbus RTU options (query of the address) and the values each accepts.
-_RTU_OPTIONS: dict[str, Callable[[str], bool]] = {
-    "baudrate": lambda v: v.isdigit() and 50 <= int(v) <= 4_000_000,
-    "parity": lambda v: v in ("N", "E", "O", "M", "S"),
-    "stopbits": lambda v: v in ("1", "2"),
-    "bytesize": lambda v: v in ("5", "6", "7", "8"),
-}
-
-
-def _host_port_problem(rest: str) -> str | None:
-    m = _HOST_PORT.fullmatch(rest)
-    if m is None:
-        return "expected host:port"
-    if not 1 <= int(m.group(1)) <= 65535:
-        return f"port {m.group(1)} outside 1–65535"
-    return None
-
-
-def serial_address_problem(address: str) -> str | None:
-    """What is wrong with a serial-line address (device path or pyserial URL), or None."""
-    scheme, sep, rest = address.partition("://")
-    if not sep:
-        return None if _SERIAL_PATH.fullmatch(address) else \
-            "expected a serial device path (/dev/ttyUSB0, COM3) or a pyserial URL (socket://host:port)"
-    if scheme not in _SERIAL_URLS:
-        return f"unknown URL scheme {short(scheme)}; known: {', '.join(_SERIAL_URLS)}"
-    if _SERIAL_URLS[scheme]:
-        return _host_port_problem(rest.partition("?")[0])
-    return None
-
-
-def modbus_address_problem(address: str) -> str | None:
-    """What is wrong with `modbus-tcp://host:port` or `modbus-rtu://<serial>?key=value&…`, or None."""
-    scheme, _, rest = address.partition("://")
-    if scheme == "modbus-tcp":
-        problem = _host_port_problem(rest)
-        return f"modbus-tcp: {problem}" if problem else None
-    if scheme == "modbus-rtu":
-        port, _, query = rest.partition("?")
-        problem = serial_address_problem(port)
-        if problem:
-            return f"modbus-rtu: {problem}"
-        for item in filter(None, query.split("&")):
-            key, _, value = item.partition("=")
-            if key not in _RTU_OPTIONS:
-                return f"modbus-rtu: unknown option {short(key)} (known: {', '.join(_RTU_OPTIONS)})"
-            if not _RTU_OPTIONS[key](value):
-                return f"modbus-rtu: {key}={short(value)} is not allowed"
-        return None
-    return "expected modbus-tcp://host:port or modbus-rtu://<serial port>?baudrate=N"
-
-
-def _address_validator(check: Callable[[str], str | None]) -> AfterValidator:
-    """Validation of an address field: `auto` (the simulated rig picks it) or what `check` finds no problem with."""
-    def validate(address: str) -> str:
-        problem = None if address == "auto" else check(address)
-        if problem:
-            raise ValueError(problem)
-        return address
-    return AfterValidator(validate)
-
-
-ModbusAddress = Annotated[str, StringConstraints(min_length=1, max_length=1000),
-                          _address_validator(modbus_address_problem)]
-SerialAddress = Annotated[str, StringConstraints(min_length=1, max_length=1000),
-                          _address_validator(serial_address_problem)]
-
-
-class PositionerDevice(StrictModel):
-    """A two-axis motion controller (goniometer arm or sample stage) speaking Modbus."""
-
-    driver: Literal["modbus-axis"] = "modbus-axis"
-    #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N`;
-    #: `auto` on the simulated rig (its peers pick free loopback ports).
-    address: ModbusAddress = "auto"
-    device_id: int = Field(1, ge=0, le=247)
-    steps_per_degree: float = Field(1000.0, gt=0, le=1e6)
-    timeout_s: Seconds = 1.0
-
-
-class LampDevice(StrictModel):
-    driver: Literal["delta-sm"] = "delta-sm"
-    address: SerialAddress = "auto"   # e.g. socket://192.168.1.20:8462 or /dev/ttyUSB1
-    timeout_s: Seconds = 1.0
-
-
-class MeterDevice(StrictModel):
-    driver: Literal["p9710"] = "p9710"
-    address: SerialAddress = "auto"   # e.g. /dev/ttyUSB0
-    timeout_s: Seconds = 1.0
-
-
-#: The camera of a served simulated rig (`rig sim serve`), reached over docs/sim-camera-protocol.md.
-SERVED_CAMERA = "rig-sim-camera"
-
-
-class CameraDevice(StrictModel):
-    """`simulated`; `rig-sim-camera` with `options: {address: socket://host:port}` (a served simulated rig);
-    or `python:package.module:Class` for a vendor-SDK driver (see docs/camera-drivers.md).
-
-    Only the form is checked here; rig.devices.check_devices imports and checks the class."""
-
-    driver: str = "simulated"
-    options: dict[str, Any] = Field(default_factory=dict)
-
-    @model_validator(mode="after")
-    def _known_driver(self):
-        if self.driver == SERVED_CAMERA:
-            address = self.options.get("address")
-            problem = serial_address_problem(address) if isinstance(address, str) else "missing"
-            if problem or not str(address).startswith("socket://") or set(self.options) != {"address"}:
-                raise ValueError(f"camera driver {SERVED_CAMERA} takes exactly options: {{address: socket://host:port}}"
-                                 f" (address: {problem or short(str(address))})")
-        elif self.driver != "simulated" and not re.fullmatch(r"python:[A-Za-z_][\w.]*:[A-Za-z_]\w*", self.driver):
-            raise ValueError(f"camera driver {short(self.driver)}: use 'simulated', '{SERVED_CAMERA}' or "
-                             "'python:package.module:Class'")
-        return self
-
-
-class DevicesConfig(StrictModel):
-    arm: PositionerDevice = PositionerDevice()
-    stage: PositionerDevice = PositionerDevice()
-    lamp: LampDevice = LampDevice()
-    meter: MeterDevice = MeterDevice()
-    camera: CameraDevice = CameraDevice()
-
-
-#: Axes of each positioner, in controller axis order.
-POSITIONER_AXES = {"arm": ("arm_azimuth", "arm_polar"), "stage": ("stage_vertical", "stage_normal")}
-
-
 class RigConfig(StrictModel):
     name: Annotated[str, StringConstraints(min_length=1, max_length=200), AfterValidator(printable)] = "simulated"
     simulated: bool = True
@@ -353,7 +215,8 @@ class RigConfig(StrictModel):
     def _picture_within_watchdog(self):
         """A vendor camera's picture blocks (the LMK's LabSoft calls do, for all of an HDR series): the lamp's
         keep-alive cannot run meanwhile, so the longest exposure must fit well inside the watchdog."""
-        if self.devices.camera.driver.startswith("python:") and self.camera.max_exposure_s > self.lamp.watchdog_s / 2:
+        vendor = self.devices.camera.driver not in ("simulated", SERVED_CAMERA)
+        if vendor and self.camera.max_exposure_s > self.lamp.watchdog_s / 2:
             raise ValueError(f"camera.max_exposure_s ({self.camera.max_exposure_s:g} s) must be at most half of "
                              f"lamp.watchdog_s ({self.lamp.watchdog_s:g} s) with a vendor camera driver: its "
                              "pictures block the lamp's keep-alive")

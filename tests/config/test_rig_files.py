@@ -6,6 +6,7 @@ import yaml
 
 from repo_paths import E2E_CAMPAIGN, RIGS
 from rig.cli.main import main
+from rig.config.rigdevices import LampDevice
 from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
 from rig.core.errors import DeviceError
 from rig.devices import connect_devices, vendor_camera
@@ -26,8 +27,9 @@ def test_example_lab_rig_file_loads():
 
 
 @pytest.mark.parametrize("change, key, rule", [
-    ({"devices": {"lamp": {"driver": "keithley"}}}, "devices.lamp.driver", "'delta-sm'"),
-    ({"devices": {"camera": {"driver": "lmk"}}}, "devices.camera", "python:package.module:Class"),
+    ({"devices": {"lamp": {"driver": "Keithley 2200"}}}, "devices.lamp", "a registered driver name"),
+    ({"devices": {"camera": {"driver": "LMK"}}}, "devices.camera", "a registered driver name"),
+    ({"devices": {"lamp": {"options": {"port": 1}}}}, "devices.lamp", "driver delta-sm takes no options"),
     ({"axes": {"arm_polar": {"limits_deg": [90, -90], "speed_deg_s": 1, "accel_deg_s2": 1}}},
      "axes.arm_polar", "low < high"),
     ({"geometry": {"camera_distance_m": -1}}, "geometry.camera_distance_m", "greater than 0"),
@@ -52,6 +54,28 @@ def test_bad_rig_file(tmp_path, change, key, rule):
         load_rig_config(f)
     line = next(text for text in str(err.value).splitlines() if f"'{key}'" in text)
     assert rule in line
+
+
+def test_a_driver_that_is_not_installed_is_refused_naming_those_that_are():
+    from rig.devices import check_devices
+
+    lab = load_rig_config(RIGS / "example-lab.yaml")
+    devices = lab.devices.model_copy(update={"lamp": LampDevice(driver="keithley", address="socket://h:1")})
+    with pytest.raises(RigConfigError, match=r"devices.lamp.driver'.*no lamp driver named 'keithley' is installed; "
+                                             r"installed: delta-sm"):
+        check_devices(lab.model_copy(update={"devices": devices}))
+
+
+def test_a_plug_in_entry_is_its_name_and_its_options(tmp_path):
+    f = tmp_path / "rig.yaml"
+    f.write_text(yaml.safe_dump({"devices": {"lamp": {"driver": "keithley-2200", "address": "tcp://x", "channel": 2},
+                                             "camera": {"driver": "lmk", "camera": "dxm", "lens": "o25"}},
+                                 "camera": {"max_exposure_s": 2}}))
+    rig = load_rig_config(f)
+    assert rig.devices.lamp.options == {"address": "tcp://x", "channel": 2}
+    assert rig.devices.lamp.driver_options() == {"address": "tcp://x", "channel": 2}
+    assert rig.devices.camera.options == {"camera": "dxm", "lens": "o25"}
+    assert RigConfig().devices.lamp.driver_options() == {"address": "auto", "timeout_s": 1.0}
 
 
 def test_auto_address_needs_the_simulated_rig():

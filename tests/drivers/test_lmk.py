@@ -18,7 +18,8 @@ import pytest
 
 from rig.acquisition.capture import DarkFrameCache, capture_point
 from rig.config.capture import CaptureSettings
-from rig.config.rigfile import CameraConfig, CameraDevice, RigConfigError
+from rig.config.rigdevices import CameraDevice
+from rig.config.rigfile import CameraConfig, RigConfigError
 from rig.core.errors import DeviceError
 from rig.core.values import Window
 from rig.devices import camera_class
