@@ -11,7 +11,7 @@ class attribute (one of ROLES), is checked to implement that role's interface,
 and is built from a rig file by its classmethod `from_rig(*, clock, settings,
 **options)`: `settings` is the rig file's section for the role (`lamp`, `meter`,
 `camera`; for a positioner, its two axes' sections by name, and also `name`), the
-options are the device entry's other keys (docs/driver-plugins.md). Nothing is
+options are the device entry's other keys (examples/rig-plugin-example/README.md). Nothing is
 imported until a driver is looked at, so one broken package cannot stop the
 others from being listed: its entry says what is wrong.
 """

@@ -1,0 +1,1 @@
+"""Example driver plug-in for rig (see this folder's README.md)."""
