@@ -39,6 +39,7 @@ class PeerFaults:
 LAMP_FAULTS = PeerFaults(("no_reply", "garbled", "short", "disconnect"), ("error_queue", "burnout"))
 METER_FAULTS = PeerFaults(("no_reply", "garbled", "short"), ("overload",))
 AXIS_FAULTS = PeerFaults(("no_reply", "garbled", "disconnect"), ("exception", "alarm"))
+ZABER_FAULTS = PeerFaults(("no_reply", "garbled", "short", "disconnect"), ("stall", "limit"))
 #: Transient faults per peer of the simulated rig.
 TRANSIENT = {"arm": AXIS_FAULTS.transient, "stage": AXIS_FAULTS.transient, "lamp": LAMP_FAULTS.transient,
              "meter": METER_FAULTS.transient}

@@ -1,16 +1,18 @@
 """The built-in simulated rig: protocol peers on loopback and the real drivers connected to them.
 
-Two Modbus axis controllers (arm, stage), a SCPI lamp supply on TCP and a P9710
-optometer on a pseudo-terminal, all driving one SimWorld on one SimClock; the
-camera, which has no public wire protocol, is the in-process SimCamera. The
-application sees exactly the drivers it would use on hardware.
+Two axis controllers (arm, stage: Modbus, or a Zaber ASCII daisy chain each, as the
+rig file's driver names say), a SCPI lamp supply on TCP and a P9710 optometer on a
+pseudo-terminal, all driving one SimWorld on one SimClock; the camera, which has no
+public wire protocol, is the in-process SimCamera. The application sees exactly the
+drivers it would use on hardware.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from rig.config.rigfile import RigConfig
+from rig.config.rigdevices import DeviceEntry
+from rig.config.rigfile import RigConfig, RigConfigError
 from rig.devices import POSITIONER_AXES, connect_devices
 from rig.drivers.interfaces import RigDevices
 from rig.physics.brdf_models import get_model
@@ -19,22 +21,42 @@ from rig.simulators.delta_sm_peer import DeltaSMPeer
 from rig.simulators.modbus_axis_server import ModbusAxisServer
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
+from rig.simulators.zaber_peer import ZaberPeer
 
-Peer = ModbusAxisServer | DeltaSMPeer | P9710Peer
+Peer = ModbusAxisServer | ZaberPeer | DeltaSMPeer | P9710Peer
+#: A Zaber positioner's (device, axis) addresses when its rig-file entry gives none (the driver's default).
+ZABER_AXES = ((1, 1), (2, 1))
+
+
+def _positioner_peer(world: SimWorld, name: str) -> ModbusAxisServer | ZaberPeer:
+    """The peer of the arm's or the stage's controller, for the driver its rig-file entry names."""
+    config = world.config
+    entry = getattr(config.devices, name)
+    axes = POSITIONER_AXES[name]
+    if entry.driver == "zaber":
+        addresses = entry.options.get("axes", ZABER_AXES)
+        return ZaberPeer(world, [(device, number, axis, getattr(config.axes, axis))
+                                 for (device, number), axis in zip(addresses, axes, strict=True)])
+    if entry.driver != entry.BUILTIN:
+        raise RigConfigError(f"key 'devices.{name}.driver': the simulated rig has peers for modbus-axis and zaber "
+                             f"positioners, not {entry.driver!r}")
+    return ModbusAxisServer(world, [(axis, getattr(config.axes, axis)) for axis in axes],
+                            steps_per_degree=entry.steps_per_degree, device_id=entry.device_id)
 
 
 def protocol_peers(world: SimWorld) -> dict[str, Peer]:
     """The peers of the rig's four wire-protocol devices (arm, stage, lamp, meter), not yet started."""
-    config = world.config
-    d = config.devices
-    peers: dict[str, Peer] = {
-        name: ModbusAxisServer(world, [(axis, getattr(config.axes, axis)) for axis in axes],
-                               steps_per_degree=getattr(d, name).steps_per_degree, device_id=getattr(d, name).device_id)
-        for name, axes in POSITIONER_AXES.items()
-    }
+    peers: dict[str, Peer] = {name: _positioner_peer(world, name) for name in POSITIONER_AXES}
     peers["lamp"] = DeltaSMPeer(world)
     peers["meter"] = P9710Peer(world)
     return peers
+
+
+def _addressed(entry: DeviceEntry, address: str) -> DeviceEntry:
+    """The device entry with the peer's address: a typed key of rig's own driver, else a plug-in option."""
+    if entry.driver == entry.BUILTIN:
+        return entry.model_copy(update={"address": address})
+    return entry.model_copy(update={"options": {**entry.options, "address": address}})
 
 
 class SimulatedRig:
@@ -53,7 +75,7 @@ class SimulatedRig:
         try:
             addresses = {name: peer.start() for name, peer in self.peers.items()}
             d = self.config.devices
-            wired = d.model_copy(update={name: getattr(d, name).model_copy(update={"address": address})
+            wired = d.model_copy(update={name: _addressed(getattr(d, name), address)
                                          for name, address in addresses.items()})
             config = self.config.model_copy(update={"devices": wired})
             self.devices = connect_devices(config, self.world.clock, camera=SimCamera(self.world))

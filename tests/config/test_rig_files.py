@@ -23,7 +23,7 @@ def test_example_lab_rig_file_loads():
     assert cfg.devices.arm.address.startswith("modbus-tcp://")
     assert cfg.devices.stage.address.startswith("modbus-rtu://")
     assert cfg.devices.lamp.address.endswith(":8462")
-    assert cfg.devices.camera.driver == "python:rig.drivers.lmk:LmkCamera"
+    assert cfg.devices.camera.driver == "lmk"
 
 
 @pytest.mark.parametrize("change, key, rule", [
