@@ -16,6 +16,8 @@ reply at all (the request times out).
 
 from __future__ import annotations
 
+import os
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, field
@@ -24,7 +26,30 @@ from typing import NoReturn
 import pytest
 from pymodbus.client import ModbusTcpClient
 
+from rig.simulators.clock import SimClock
+
 Exchange = tuple[bytes, bytes | None]
+
+
+@pytest.fixture
+def clock() -> SimClock:
+    """The rig clock of a driver under test: simulated, unpaced."""
+    return SimClock(pace=0)
+
+
+@pytest.fixture
+def events() -> list[tuple[str, dict]]:
+    """Collects what a driver reports (`driver.events = lambda kind, **f: events.append((kind, f))`)."""
+    return []
+
+
+@pytest.fixture
+def no_leaks() -> Iterator[None]:
+    """Every pty, port and reader thread a test opened is closed by its end."""
+    fds, threads = set(os.listdir("/proc/self/fd")), set(threading.enumerate())
+    yield
+    assert set(os.listdir("/proc/self/fd")) == fds
+    assert set(threading.enumerate()) == threads
 
 
 @dataclass

@@ -14,7 +14,6 @@ import pytest
 from rig.core.errors import DeviceError
 from rig.drivers.delta_sm import DeltaSM, plain
 from rig.drivers.retry import RetryPolicy
-from rig.simulators.clock import SimClock
 
 IDN = "DELTA ELEKTRONIKA BV,SM500-CP-90,000010207248,H0_P0150,0"      # manual §5.1.1
 OK = ("SYSTem:ERRor?", "0,None")
@@ -45,14 +44,6 @@ def lines(exchanges: list[tuple]) -> list[bytes]:
     return [line for line, _ in exchanges]
 
 
-@pytest.fixture
-def clock() -> SimClock:
-    return SimClock(pace=0)
-
-
-@pytest.fixture
-def events() -> list[tuple[str, dict]]:
-    return []
 
 
 @pytest.fixture

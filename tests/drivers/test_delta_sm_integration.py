@@ -55,10 +55,6 @@ def shared_lamp(peer, world):
     lamp.close()
 
 
-@pytest.fixture
-def events() -> list[tuple[str, dict]]:
-    return []
-
 
 def ask(peer: DeltaSMPeer, *lines: str) -> list[str | None]:
     return [peer.answer(line.encode("ascii")) for line in lines]

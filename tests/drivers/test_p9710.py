@@ -16,7 +16,6 @@ import pytest
 
 from rig.core.errors import DeviceError
 from rig.drivers.p9710 import ERROR_BITS, P9710, error_meaning
-from rig.simulators.clock import SimClock
 
 CAL = 1.0e9
 #: A real unit's identity exchanges (captured), then autorange on and 0.2 s integration (manual), acked by LF.
@@ -27,14 +26,6 @@ CONNECT_MANUAL = [(b"GI\n", b"P-9710 4.7\n")] + CONNECT[1:]
 READING = (b"MA;GR\n", b"+1.2345E-06;3\n")
 
 
-@pytest.fixture
-def clock() -> SimClock:
-    return SimClock()
-
-
-@pytest.fixture
-def events():
-    return []
 
 
 def connect(open_port, clock, events, **options) -> P9710:

@@ -8,7 +8,6 @@ manual's constructed examples (P-9710 Operating Manual V1.20 §15: `SN1000`→LF
 
 import os
 import re
-import threading
 import time
 
 import pytest
@@ -37,14 +36,6 @@ FAULT_REPLIES = pytest.mark.parametrize("fault, reply", [
 NUMBER = rb"[+-]\d\.\d{4}E[+-]\d\d"
 
 
-@pytest.fixture
-def no_leaks():
-    """Every pty, port and reader thread a test opened is closed by its end."""
-    fds, threads = set(os.listdir("/proc/self/fd")), set(threading.enumerate())
-    yield
-    assert set(os.listdir("/proc/self/fd")) == fds
-    assert set(threading.enumerate()) == threads
-
 
 def lit_world(**sim) -> SimWorld:
     """A warm, steady lamp at nominal current."""
@@ -66,10 +57,6 @@ def peer(world, no_leaks):
     with P9710Peer(world) as p:
         yield p
 
-
-@pytest.fixture
-def events():
-    return []
 
 
 def connect(path, world, events, cal=CAL) -> P9710:

@@ -19,7 +19,6 @@ from rig.core.errors import DeviceError
 from rig.core.motion import move_time_s
 from rig.drivers.retry import RetryPolicy
 from rig.drivers.zaber import FLAGS, ZaberAxis, ZaberChain, lrc
-from rig.simulators.clock import SimClock
 
 PER_DEG = 1536000 / 360
 #: Axis 1 of device 1 at power-up: 1 536 000 µsteps per turn, 15 °/s → 104858, 30 °/s² → 21, no reference.
@@ -64,14 +63,6 @@ class LinePort(ReplayPort):
         return first + b"\n"
 
 
-@pytest.fixture
-def clock() -> SimClock:
-    return SimClock()
-
-
-@pytest.fixture
-def events():
-    return []
 
 
 def chain(open_port, clock, events) -> ZaberChain:

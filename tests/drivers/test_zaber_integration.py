@@ -9,10 +9,8 @@ The article's `/1 0 home` → `RJ … BADCOMMAND` contradicts its own `/1 home` 
 and is not replayed.
 """
 
-import os
 import re
 import socket
-import threading
 from types import SimpleNamespace
 
 import pytest
@@ -40,13 +38,6 @@ def make_world() -> SimWorld:
     return SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0, axis_zero_sigma_deg=0.0)),
                     get_model("lambert"), {"kd": 0.5})
 
-
-@pytest.fixture
-def no_leaks():
-    fds, threads = set(os.listdir("/proc/self/fd")), set(threading.enumerate())
-    yield
-    assert set(os.listdir("/proc/self/fd")) == fds
-    assert set(threading.enumerate()) == threads
 
 
 def connect(peer, world, events, **options):
