@@ -259,14 +259,7 @@ def test_offset_battery_and_percent_of_range(exchange, no_leaks):
     assert exchange(b"\n") == b"\n"
 
 
-def test_peer_lifecycle(world, no_leaks):
-    peer = P9710Peer(world)
-    path = peer.start()
-    assert path.startswith("/dev/pts/") and os.path.exists(path)
-    with pytest.raises(RuntimeError, match="already started"):
-        peer.start()
-    peer.stop()
-    peer.stop()
-    with pytest.raises(ValueError, match="unknown fault 'smoke'"):
-        peer.inject("smoke")
+def test_peer_listens_on_a_pty_and_names_its_faults(world, no_leaks):
+    with P9710Peer(world) as peer:
+        assert peer.url is not None and peer.url.startswith("/dev/pts/") and os.path.exists(peer.url)
     assert METER_FAULTS.transient == ("no_reply", "garbled", "short") and METER_FAULTS.other == ("overload",)

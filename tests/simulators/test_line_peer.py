@@ -1,15 +1,24 @@
 """LinePeer over TCP: one client at a time when exclusive, and a reconnecting client always gets through."""
 
+import os
 import select
 import selectors
 import socket
 import struct
+import threading
+from collections.abc import Callable
 
 import pytest
 
+from rig.config.rigfile import RigConfig
 from rig.drivers.transport import LineTransport
+from rig.physics.brdf_models import get_model
+from rig.simulators.delta_sm_peer import DeltaSMPeer
 from rig.simulators.faults import PeerFaults
 from rig.simulators.line_peer import LinePeer, _TcpServer, peer_gone
+from rig.simulators.p9710_peer import P9710Peer
+from rig.simulators.world import SimWorld
+from rig.simulators.zaber_peer import ZaberPeer
 
 
 class EchoPeer(LinePeer):
@@ -139,3 +148,25 @@ def test_peer_gone_tells_a_closed_connection_from_an_open_one():
             assert server_side.recv(64) == b"pending"          # peeking consumed nothing
             client.close()                                     # on loopback the FIN is there on return
             assert peer_gone(server_side)
+
+
+def _peers() -> list[tuple[str, Callable[[], LinePeer]]]:
+    world = lambda: SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5})    # noqa: E731
+    arm = RigConfig().axes
+    return [("p9710", lambda: P9710Peer(world())), ("delta-sm", lambda: DeltaSMPeer(world())),
+            ("zaber", lambda: ZaberPeer(world(), [(1, 1, "arm_azimuth", arm.arm_azimuth)]))]
+
+
+@pytest.mark.parametrize("make", [make for _, make in _peers()], ids=[name for name, _ in _peers()])
+def test_every_line_peer_starts_once_stops_twice_and_refuses_unknown_faults(make):
+    """The life cycle every peer inherits from LinePeer; nothing is left open."""
+    fds, threads = set(os.listdir("/proc/self/fd")), set(threading.enumerate())
+    peer = make()
+    peer.start()
+    with pytest.raises(RuntimeError, match="already started"):
+        peer.start()
+    peer.stop()
+    peer.stop()
+    with pytest.raises(ValueError, match="unknown fault 'smoke'"):
+        peer.inject("smoke")
+    assert set(os.listdir("/proc/self/fd")) == fds and set(threading.enumerate()) == threads
