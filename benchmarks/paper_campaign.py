@@ -1,7 +1,7 @@
 """Benchmark: the paper campaign (Spieringhs 2023 RM1, Table 1 × Table 2) on the simulated rig.
 
 The simulated rig is the real drivers talking to in-process protocol peers over
-loopback TCP (Modbus axes, SCPI lamp supply) and a pseudo-terminal (P9710), plus
+loopback TCP (Modbus AZ drives, SCPI lamp supply) and a pseudo-terminal (P9710), plus
 the in-process camera. Prints the machine and settings, the wall time of the
 whole campaign, the per-point protocol overhead (round trips and milliseconds
 spent in device exchanges), the time inside the simulated camera, and, as a
@@ -32,7 +32,7 @@ from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.core.values import Window  # noqa: E402
 from rig.data.dataset import DatasetWriter  # noqa: E402
-from rig.drivers.modbus_axis import ModbusAxisController  # noqa: E402
+from rig.drivers.modbus_drive import ModbusDriveLink  # noqa: E402
 from rig.drivers.transport import LineTransport  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.bench import machine  # noqa: E402
@@ -62,7 +62,7 @@ class Timed:
 class ProtocolMeter:
     """Counts and times every device exchange: Modbus requests and ASCII queries/writes."""
 
-    PATCHES = ((ModbusAxisController, ("read", "write", "write_read")), (LineTransport, ("query", "write_line")))
+    PATCHES = ((ModbusDriveLink, ("read", "write")), (LineTransport, ("query", "write_line")))
 
     def __init__(self):
         self.round_trips = 0

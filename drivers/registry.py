@@ -33,7 +33,7 @@ ROLES: dict[str, type | None] = {"positioner": None, "lamp": LampSupply, "meter"
 
 #: rig's own drivers, exactly as its pyproject.toml registers them (a test holds the two equal): found even
 #: when the installed metadata predates them (a checkout updated without reinstalling).
-BUILTIN = {"modbus-axis": "rig.drivers.modbus_axis:ModbusAxisController", "zaber": "rig.drivers.zaber:ZaberChain",
+BUILTIN = {"modbus-drive": "rig.drivers.modbus_drive:ModbusDriveLink", "zaber": "rig.drivers.zaber:ZaberChain",
            "delta-sm": "rig.drivers.delta_sm:DeltaSM",
            "p9710": "rig.drivers.p9710:P9710", "lmk": "rig.drivers.lmk:LmkCamera",
            "genicam": "rig.drivers.genicam:GenICamCamera",

@@ -20,7 +20,7 @@ from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, CameraDevice, 
 from rig.config.rigfile import CameraConfig, RigConfig, RigConfigError
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
-from rig.drivers.interfaces import LuminanceCamera, RigDevices
+from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera, RigDevices
 from rig.drivers.registry import driver_class
 
 __all__ = ["POSITIONER_AXES", "camera_class", "check_devices", "connect_devices", "vendor_camera"]
@@ -112,13 +112,23 @@ def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
         for which in ROLE_OF:
             entry = getattr(config.devices, which)
             if which == "camera" and entry.driver.startswith("python:"):
-                camera_class(entry, config.camera)
+                cls: Any = camera_class(entry, config.camera)
             elif entry.driver != "simulated":
-                _registered(which, entry)
+                cls = _registered(which, entry)
             else:
                 camera_class(entry, config.camera)      # says the simulated camera needs the simulated rig
+            if which == "camera" and config.camera.calibration_file and _calibrates_itself(cls):
+                raise RigConfigError(f"key 'camera.calibration_file': camera driver {entry.driver!r} delivers "
+                                     "calibrated luminance (its own calibration); a calibration file is for a raw "
+                                     "camera (docs/camera-calibration.md)")
     except RigConfigError as exc:
         raise RigConfigError(f"{source}: {exc}") from None
+
+
+def _calibrates_itself(build: Any) -> bool:
+    """Whether a camera driver (its class, or its class's `from_rig`) is a CalibratedLuminanceCamera."""
+    cls = getattr(build, "__self__", build)
+    return inspect.isclass(cls) and issubclass(cls, CalibratedLuminanceCamera)
 
 
 def _check_addresses(config: RigConfig) -> None:
@@ -145,6 +155,13 @@ def vendor_camera(config: RigConfig, dev: CameraDevice) -> LuminanceCamera:
                                     f"{type(exc).__name__}: {clip(str(exc), 200)}") from None
 
 
+def connect_camera(config: RigConfig, clock: Clock) -> LuminanceCamera:
+    """The rig's camera alone (`rig calibrate camera` needs nothing else): its registered driver, or a
+    `python:` vendor class."""
+    dev = config.devices.camera
+    return vendor_camera(config, dev) if dev.driver.startswith("python:") else _connect(config, "camera", clock)
+
+
 def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | None = None) -> RigDevices:
     """Open every device; on any failure close what was opened and re-raise.
 
@@ -168,8 +185,7 @@ def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | N
         meter = _connect(config, "meter", clock)
         opened.append(meter)
         if camera is None:
-            camera = vendor_camera(config, d.camera) if d.camera.driver.startswith("python:") else \
-                _connect(config, "camera", clock)
+            camera = connect_camera(config, clock)
         return RigDevices(arm=arm, stage=stage, lamp=lamp, meter=meter, camera=camera, clock=clock,
                           simulated=config.simulated)
     except BaseException:

@@ -20,11 +20,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from enum import IntEnum
 
 from rig.config.rigfile import AxisConfig
 from rig.core.motion import move_time_s, position_at
-from rig.drivers.modbus_axis_map import Alarm
 from rig.simulators.world import SimWorld
+
+
+class Alarm(IntEnum):
+    """The alarms a simulated axis raises, by the codes of the Oriental Motor AZ drives (docs/modbus-drives.md);
+    a peer of another protocol translates them to its own flags."""
+
+    DEVIATION = 0x10          # excessive position deviation: stall or obstruction
+    OVERTRAVEL = 0x67         # software overtravel: target beyond the soft limits
+    OPERATION_DATA = 0x70     # a value of the commanded operation is out of range
 
 
 @dataclass(frozen=True)
@@ -117,8 +126,7 @@ class AxisModel:
             return
         lo, hi = self.cfg.limits_deg
         if not lo <= target_deg <= hi:
-            self.stop()
-            self._latched_alarm = Alarm.OVERTRAVEL
+            self.raise_alarm(Alarm.OVERTRAVEL)
             return
         self._begin(target_deg, speed_deg_s, accel_deg_s2)
 
@@ -133,6 +141,11 @@ class AxisModel:
         command, encoder = self.command_position_deg(), self.encoder_position_deg()
         self._move = _Move(self.world.clock.now(), command, command, self._move.speed_deg_s,
                            self._move.accel_deg_s2, encoder - command, encoder - command, self.cfg.settle_s)
+
+    def raise_alarm(self, code: int) -> None:
+        """Halt now and hold alarm `code` until it is reset."""
+        self.stop()
+        self._latched_alarm = code
 
     def reset_alarm(self) -> None:
         self._fold()

@@ -6,6 +6,8 @@ scene luminance is L = f_r(ωi, ωo) · E⊥ · cos θi · texture(x, y) · glin
 with ωo the per-pixel direction from that point to the camera; everywhere else it is the
 configured ambient (stray-light) luminance. The lamp housing's occlusion of the
 view and the camera's shadow are not modelled: the planner excludes those points.
+Whatever is rendered passes through the sensor model (rig.simulators.sensor), which
+applies the lens's cos⁴ fall-off, PRNU, DSNU and the optional nonlinearity.
 """
 
 from __future__ import annotations
@@ -88,3 +90,19 @@ class SimCamera(LuminanceCamera):
         frame, duration = self.render(exposure_s, window, dark)
         self.world.clock.sleep(duration)
         return frame
+
+
+class UniformSourceCamera(SimCamera):
+    """The simulated camera looking into a uniform source (an integrating sphere's port filling the field
+    of view) of luminance `luminance_cd_m2`: what `rig calibrate camera` measures on the simulated rig. The
+    lens's vignetting and the sensor's PRNU, DSNU and nonlinearity still apply (SensorModel)."""
+
+    def __init__(self, world: SimWorld, luminance_cd_m2: float):
+        super().__init__(world)
+        self.source_cd_m2 = luminance_cd_m2
+
+    def identity(self) -> str:
+        return "simulated camera before a uniform source (rig sim)"
+
+    def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
+        return np.full((window.height, window.width), self.source_cd_m2)

@@ -17,13 +17,13 @@ import json
 import socket
 import threading
 import time
-from dataclasses import asdict
+from dataclasses import fields
 from typing import Self
 
 import numpy as np
 
 from rig.core.errors import DeviceError
-from rig.core.values import Frame, Window
+from rig.core.values import Frame, SensorInfo, Window
 from rig.simulators.camera import SimCamera
 from rig.simulators.clock import SimClock
 from rig.simulators.line_peer import peer_gone
@@ -169,7 +169,8 @@ class CameraServer:
                     self._session = None
                 return _ok(""), True
             if verb == "SENSOR?":
-                return _ok(json.dumps(asdict(self.camera.sensor))), False
+                # SensorInfo's own fields (a calibration file's coefficient included; its flat field is not sent)
+                return _ok(json.dumps({f.name: getattr(self.camera.sensor, f.name) for f in fields(SensorInfo)})), False
             if verb == "EXPOSE":
                 return _ok(repr(self._expose(session, args))), False
             if verb == "READ":

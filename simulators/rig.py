@@ -1,6 +1,6 @@
 """The built-in simulated rig: protocol peers on loopback and the real drivers connected to them.
 
-Two axis controllers (arm, stage: Modbus, or a Zaber ASCII daisy chain each, as the
+Two pairs of axis drives (arm, stage: Oriental Motor AZ drives on Modbus, or a Zaber ASCII daisy chain each, as the
 rig file's driver names say), a SCPI lamp supply on TCP and a P9710 optometer on a
 pseudo-terminal, all driving one SimWorld on one SimClock; the camera, which has no
 public wire protocol, is the in-process SimCamera. The application sees exactly the
@@ -18,17 +18,19 @@ from rig.drivers.interfaces import RigDevices
 from rig.physics.brdf_models import get_model
 from rig.simulators.camera import SimCamera
 from rig.simulators.delta_sm_peer import DeltaSMPeer
-from rig.simulators.modbus_axis_server import ModbusAxisServer
+from rig.simulators.oriental_az_peer import OrientalAZPeer
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
 from rig.simulators.zaber_peer import ZaberPeer
 
-Peer = ModbusAxisServer | ZaberPeer | DeltaSMPeer | P9710Peer
+Peer = OrientalAZPeer | ZaberPeer | DeltaSMPeer | P9710Peer
 #: A Zaber positioner's (device, axis) addresses when its rig-file entry gives none (the driver's default).
 ZABER_AXES = ((1, 1), (2, 1))
+#: The drive map the simulated Modbus drives (OrientalAZPeer) answer.
+SIMULATED_DRIVE_MAP = "oriental-az"
 
 
-def _positioner_peer(world: SimWorld, name: str) -> ModbusAxisServer | ZaberPeer:
+def _positioner_peer(world: SimWorld, name: str) -> OrientalAZPeer | ZaberPeer:
     """The peer of the arm's or the stage's controller, for the driver its rig-file entry names."""
     config = world.config
     entry = getattr(config.devices, name)
@@ -38,10 +40,13 @@ def _positioner_peer(world: SimWorld, name: str) -> ModbusAxisServer | ZaberPeer
         return ZaberPeer(world, [(device, number, axis, getattr(config.axes, axis))
                                  for (device, number), axis in zip(addresses, axes, strict=True)])
     if entry.driver != entry.BUILTIN:
-        raise RigConfigError(f"key 'devices.{name}.driver': the simulated rig has peers for modbus-axis and zaber "
+        raise RigConfigError(f"key 'devices.{name}.driver': the simulated rig has peers for modbus-drive and zaber "
                              f"positioners, not {entry.driver!r}")
-    return ModbusAxisServer(world, [(axis, getattr(config.axes, axis)) for axis in axes],
-                            steps_per_degree=entry.steps_per_degree, device_id=entry.device_id)
+    if entry.map != SIMULATED_DRIVE_MAP:
+        raise RigConfigError(f"key 'devices.{name}.map': the simulated rig's Modbus drives are Oriental Motor AZ "
+                             f"drives (map {SIMULATED_DRIVE_MAP}), not {entry.map!r}")
+    return OrientalAZPeer(world, [(axis, getattr(config.axes, axis)) for axis in axes], device_ids=entry.device_ids,
+                          steps_per_degree=entry.steps_per_degree)
 
 
 def protocol_peers(world: SimWorld) -> dict[str, Peer]:

@@ -5,6 +5,11 @@ responsivity × t × (1 + PRNU)) plus dark electrons (Poisson, mean =
 (dark current + DSNU) × t), read noise (Gaussian, σd), full-well clipping,
 gain K, black-level offset, rounding to integer DN and ADC clipping. The
 photon-transfer relation σy² = K²σd² + σq² + K(μy − μy,dark) follows.
+
+Two truths for `rig calibrate camera` to recover: the lens's natural vignetting
+(cos⁴ of each pixel's field angle in the pinhole model; the central ROI of a long
+lens loses under 1e-4) scales the photo-electrons, and an optional nonlinearity of
+the charge conversion (`simulation.nonlinearity_rel`, 0 by default) bends the response.
 """
 
 from __future__ import annotations
@@ -37,6 +42,21 @@ def electrons(rng: np.random.Generator, mean_e: np.ndarray, read_noise_e: float,
     return np.minimum(charge, full_well_e, out=charge)
 
 
+def natural_vignetting(camera: CameraConfig) -> np.ndarray:
+    """cos⁴ of each pixel centre's angle to the optical axis (H, W): the natural vignetting of a pinhole
+    lens. Pixel centres are at +0.5 as in rig.physics.optics."""
+    pitch_mm = camera.pixel_pitch_um * 1e-3
+    y, x = np.mgrid[0:camera.height_px, 0:camera.width_px].astype(float)
+    r2_mm2 = (((x + 0.5 - camera.width_px / 2) * pitch_mm) ** 2 + ((y + 0.5 - camera.height_px / 2) * pitch_mm) ** 2)
+    return (camera.focal_length_mm ** 2 / (camera.focal_length_mm ** 2 + r2_mm2)) ** 2
+
+
+def convert_nonlinear(charge_e: np.ndarray, nonlinearity_rel: float, full_well_e: float) -> np.ndarray:
+    """Charge seen through a quadratic conversion e·(1 − β(1 − e/FW)), β = nonlinearity_rel: the response
+    falls short by β·e near zero and by nothing at the full well, so saturation stays where it was."""
+    return charge_e * (1.0 - nonlinearity_rel * (1.0 - charge_e / full_well_e))
+
+
 def digitise(electrons_e: np.ndarray, gain_dn_per_e: float, black_level_dn: float,
              bit_depth: int) -> np.ndarray:
     """DN = round(black level + K·e), clipped to the ADC range, as uint16."""
@@ -48,13 +68,16 @@ def digitise(electrons_e: np.ndarray, gain_dn_per_e: float, black_level_dn: floa
 class SensorModel:
     """A camera's configuration plus its full-sensor fixed patterns (H, W).
 
-    `gain` is 1 + PRNU (relative photo response) and `dark_e_s` the dark
-    current including DSNU (e⁻/s); neither is negative. Windows read slices of them.
+    `gain` is 1 + PRNU (relative photo response), `illumination` the lens's relative
+    illumination (cos⁴ fall-off, 1 on the axis) and `dark_e_s` the dark current
+    including DSNU (e⁻/s); none is negative. Windows read slices of them.
     """
 
     camera: CameraConfig
     gain: np.ndarray
     dark_e_s: np.ndarray
+    illumination: np.ndarray
+    nonlinearity_rel: float = 0.0
 
     @classmethod
     def from_config(cls, camera: CameraConfig, sim: SimulationConfig,
@@ -62,7 +85,7 @@ class SensorModel:
         shape = (camera.height_px, camera.width_px)
         gain = np.maximum(1.0 + sim.prnu_rel * rng.standard_normal(shape), 0.0)
         dark = np.maximum(sim.dark_current_e_s + sim.dsnu_e_s * rng.standard_normal(shape), 0.0)
-        return cls(camera, gain, dark)
+        return cls(camera, gain, dark, natural_vignetting(camera), sim.nonlinearity_rel)
 
     def mean_electrons(self, luminance_cd_m2: np.ndarray | float, exposure_s: float,
                        window: Window) -> np.ndarray:
@@ -70,7 +93,7 @@ class SensorModel:
         rows = slice(window.y0, window.y0 + window.height)
         cols = slice(window.x0, window.x0 + window.width)
         photo = (self.camera.responsivity_e_per_cd_m2_s * exposure_s) * luminance_cd_m2
-        return photo * self.gain[rows, cols] + self.dark_e_s[rows, cols] * exposure_s
+        return photo * (self.gain[rows, cols] * self.illumination[rows, cols]) + self.dark_e_s[rows, cols] * exposure_s
 
     def read(self, rng: np.random.Generator, luminance_cd_m2: np.ndarray | float,
              exposure_s: float, window: Window) -> np.ndarray:
@@ -78,4 +101,6 @@ class SensorModel:
         cam = self.camera
         charge = electrons(rng, self.mean_electrons(luminance_cd_m2, exposure_s, window),
                            cam.read_noise_e, cam.full_well_e)
+        if self.nonlinearity_rel:
+            charge = convert_nonlinear(charge, self.nonlinearity_rel, cam.full_well_e)
         return digitise(charge, cam.gain_dn_per_e, cam.black_level_dn, cam.bit_depth)

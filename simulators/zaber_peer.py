@@ -28,8 +28,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from rig.config.rigfile import AxisConfig
-from rig.drivers.modbus_axis_map import Alarm
-from rig.simulators.axis_model import AxisModel
+from rig.simulators.axis_model import Alarm, AxisModel
 from rig.simulators.faults import ZABER_FAULTS
 from rig.simulators.line_peer import LinePeer
 from rig.simulators.world import SimWorld

@@ -50,6 +50,7 @@ from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera
+from rig.physics.camera_calibration import CalibratedSensorInfo
 from rig.physics.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
 from rig.physics.roi import mean_noise, point_flags, roi_statistics
 
@@ -305,7 +306,10 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
 
 
 def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
-    """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O."""
+    """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O.
+
+    A camera with a calibration file (`rig calibrate camera`) has its flat field (lens fall-off and PRNU)
+    divided out of the merged rate, pixel by pixel, before its coefficient applies."""
     if isinstance(acq, CalibratedAcquisition):
         return reduce_calibrated(acq)
     sensor, settings = acq.sensor, acq.settings
@@ -315,9 +319,11 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     else:
         merged, in_merged = acq.roi_merge, (slice(None), slice(None))
     var_dark = mean_noise(merged.var_dark[in_merged]) ** 2
-    cal = sensor.calibration_cd_m2_per_dn_s
+    cal = np.full(merged.rate_dn_s.shape, sensor.calibration_cd_m2_per_dn_s)      # cd/m² per DN/s, per pixel
+    if isinstance(sensor, CalibratedSensorInfo):
+        cal /= sensor.flat_of(acq.window if settings.full_frame else acq.roi)
     luminance = merged.rate_dn_s * cal
-    stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal ** 2)
+    stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal[in_merged] ** 2)
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=float(np.hypot(stats.u_mean, sensor.calibration_u_rel * stats.mean)),
@@ -329,7 +335,7 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
         roi_window=acq.roi,
         n_frames=acq.n_frames,
         u_noise_cd_m2=stats.u_mean_noise,
-        u_dark_cd_m2=float(np.sqrt(var_dark)) * cal,
+        u_dark_cd_m2=float(np.sqrt(var_dark) * cal[in_merged].mean()),
         u_texture_cd_m2=stats.u_texture,
         capture_time_s=acq.capture_time_s,
         n_darks=acq.n_darks,

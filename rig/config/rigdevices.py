@@ -17,6 +17,7 @@ from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
 from rig.config.files import short
 from rig.config.strict import StrictModel
+from rig.drivers.modbus_drive_map import DriveMapError, is_map_path, load_drive_map
 
 #: A device timeout (s).
 Seconds = Annotated[float, Field(gt=0, le=60)]
@@ -138,17 +139,38 @@ class DeviceEntry(StrictModel):
         return self.model_dump(exclude={"driver", "options"})
 
 
-class PositionerDevice(DeviceEntry):
-    """A two-axis motion controller (goniometer arm or sample stage); rig's own speaks Modbus."""
+StepsPerDegree = Annotated[float, Field(gt=0, le=1e6)]
+DeviceId = Annotated[int, Field(ge=1, le=247)]
 
-    BUILTIN = "modbus-axis"
+
+class PositionerDevice(DeviceEntry):
+    """Two axes (goniometer arm or sample stage); rig's own driver: two Modbus drives on one link, whose
+    registers a drive map names (docs/modbus-drives.md)."""
+
+    BUILTIN = "modbus-drive"
     driver: str = BUILTIN
-    #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N`;
+    #: `modbus-tcp://host:port` or `modbus-rtu://<serial path or pyserial URL>?baudrate=N&parity=E`;
     #: `auto` on the simulated rig (its peers pick free loopback ports).
     address: ModbusAddress = "auto"
-    device_id: int = Field(1, ge=0, le=247)
-    steps_per_degree: float = Field(1000.0, gt=0, le=1e6)
+    #: A packaged drive map by name, or the path of a map file of the same form.
+    map: str = Field("oriental-az", min_length=1, max_length=1000)
+    #: The Modbus device ids of the two axes' drives, in the positioner's axis order.
+    device_ids: tuple[DeviceId, DeviceId] = (1, 2)
+    #: Motor steps per degree of the axis (gearing × resolution): one for both axes, or one each.
+    steps_per_degree: StepsPerDegree | tuple[StepsPerDegree, StepsPerDegree] = 1000.0
     timeout_s: Seconds = 1.0
+
+    @model_validator(mode="after")
+    def _drives(self):
+        if self.driver == self.BUILTIN:
+            if self.device_ids[0] == self.device_ids[1]:
+                raise ValueError(f"device_ids: the two drives need two ids, got {list(self.device_ids)}")
+            if not is_map_path(self.map):        # a file is read by load_rig_config, relative to the rig file
+                try:
+                    load_drive_map(self.map)
+                except DriveMapError as exc:
+                    raise ValueError(f"map: {exc}") from None
+        return self
 
 
 class LampDevice(DeviceEntry):

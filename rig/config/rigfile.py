@@ -20,12 +20,14 @@ from typing import Annotated
 
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
+from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
 from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, DevicesConfig
 from rig.config.strict import StrictModel
 from rig.config.zones import CollisionsConfig
 from rig.core.values import SensorInfo
+from rig.drivers.modbus_drive_map import DriveMapError, is_map_path, load_drive_map
 from rig.physics.geometry import AxisLimits
 from rig.physics.optics import CameraOptics
 
@@ -37,7 +39,7 @@ Seconds = Annotated[float, Field(gt=0, le=60)]
 Rel = Annotated[float, Field(ge=0, le=1)]
 #: Distances on the rig (m).
 Metres = Annotated[float, Field(gt=0, le=100)]
-#: Axis positions, speeds and accelerations travel as int32 step counts (docs/modbus-axis-register-map.md).
+#: Axis positions, speeds and accelerations travel as int32 step counts (docs/modbus-drives.md).
 INT32_MAX = 2 ** 31 - 1
 
 
@@ -78,7 +80,10 @@ class GeometryConfig(StrictModel):
 
 
 class CameraConfig(StrictModel):
-    """Sensor and lens of the luminance camera (LMK 98-4: ICX285, 1390×1040, 12 bit)."""
+    """Sensor and lens of the luminance camera (LMK 98-4: ICX285, 1390×1040, 12 bit).
+
+    `calibration_file` names what `rig calibrate camera` wrote (relative to the rig file): its
+    coefficient, uncertainty and flat field then replace the ones derived from responsivity and gain."""
 
     width_px: int = Field(1390, gt=0, le=100_000)
     height_px: int = Field(1040, gt=0, le=100_000)
@@ -95,6 +100,8 @@ class CameraConfig(StrictModel):
     max_exposure_s: float = Field(15.0, gt=0, le=MAX_EXPOSURE_S)
     #: Time to read the full sensor; a window reads proportionally faster.
     readout_s: float = Field(0.1, ge=0, le=60)
+    calibration_file: Annotated[str, StringConstraints(min_length=1, max_length=1000),
+                                AfterValidator(printable)] | None = None
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -111,13 +118,16 @@ class CameraConfig(StrictModel):
         return (2 ** self.bit_depth - 1 - self.black_level_dn) / self.full_well_e
 
     def sensor_info(self) -> SensorInfo:
-        return SensorInfo(
+        """What the pipeline needs; with a calibration file, a CalibratedSensorInfo carrying it
+        (CameraCalibrationError if it cannot be used)."""
+        sensor = SensorInfo(
             width_px=self.width_px, height_px=self.height_px, bit_depth=self.bit_depth,
             gain_dn_per_e=self.gain_dn_per_e, read_noise_e=self.read_noise_e,
             black_level_dn=self.black_level_dn,
             calibration_cd_m2_per_dn_s=1.0 / (self.responsivity_e_per_cd_m2_s * self.gain_dn_per_e),
             calibration_u_rel=self.calibration_u_rel,
             min_exposure_s=self.min_exposure_s, max_exposure_s=self.max_exposure_s)
+        return calibrated_sensor(sensor, self.calibration_file) if self.calibration_file else sensor
 
 
 class LampConfig(StrictModel):
@@ -184,6 +194,9 @@ class SimulationConfig(StrictModel):
     #: encoders read the physical angle minus it, so it is what `geometry.angle_u_deg` must cover.
     axis_zero_sigma_deg: float = Field(0.01, ge=0, le=10)
     ambient_cd_m2: float = Field(0.0, ge=0, le=1e6)              # stray light on unlit parts
+    #: Relative shortfall β of the charge conversion near zero signal, none at full well
+    #: (rig.simulators.sensor.convert_nonlinear): a nonlinearity for `rig calibrate camera` to find.
+    nonlinearity_rel: float = Field(0.0, ge=0, le=0.5)
 
 
 class RigConfig(StrictModel):
@@ -253,6 +266,31 @@ class RigConfigError(ConfigFileError):
 
 
 def load_rig_config(path: str | Path) -> RigConfig:
-    """Read and validate a rig file; raise RigConfigError with one clear message."""
-    return parse_model(read_yaml(path, "rig", RigConfigError), RigConfig, source=path, what="rig configuration",
-                       error=RigConfigError)
+    """Read and validate a rig file; raise RigConfigError with one clear message.
+
+    Files the rig file names (`camera.calibration_file`, a positioner's drive `map` given by path) are
+    made relative to the rig file and read once here, so that a bad one is refused before anything is
+    connected."""
+    config = parse_model(read_yaml(path, "rig", RigConfigError), RigConfig, source=path, what="rig configuration",
+                         error=RigConfigError)
+    folder = Path(path).parent
+    update: dict[str, object] = {}
+    for name in POSITIONER_AXES:
+        entry = getattr(config.devices, name)
+        if entry.driver == entry.BUILTIN and is_map_path(entry.map):
+            try:
+                load_drive_map(str(folder / entry.map))
+            except DriveMapError as exc:
+                raise RigConfigError(f"{path}: key 'devices.{name}.map': {exc}") from None
+            update[name] = entry.model_copy(update={"map": str(folder / entry.map)})
+    if update:
+        config = config.model_copy(update={"devices": config.devices.model_copy(update=update)})
+    cal = config.camera.calibration_file
+    if cal is None:
+        return config
+    camera = config.camera.model_copy(update={"calibration_file": str(folder / cal)})
+    try:
+        camera.sensor_info()
+    except ConfigFileError as exc:
+        raise RigConfigError(f"{path}: key 'camera.calibration_file': {exc}") from None
+    return config.model_copy(update={"camera": camera})

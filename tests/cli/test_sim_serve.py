@@ -27,9 +27,10 @@ from rig.simulators.served import PAPER_RM1
 from rig_process import HANG_S, pending_points, start_rig, wait_until
 
 CAMPAIGN = TEST_CAMPAIGNS / "served.yaml"
-#: Rig seconds per wall second of the served world: the campaign's ~1.5 min of rig time take seconds,
-#: while the 10 s watchdog still leaves the client a second of wall time between two lamp commands.
-SPEED = 10.0
+#: Rig seconds per wall second of the served world: the campaign's ~1.3 min of rig time take ~15 s, long
+#: enough for a second client to start while it runs (~3 s of imports), while the 10 s watchdog still leaves
+#: the client two seconds of wall time between two lamp commands.
+SPEED = 5.0
 WATCHDOG_S = 10.0
 
 
@@ -96,7 +97,7 @@ def test_kill_9_leaves_the_lamp_to_the_watchdog_and_resume_completes(served, tmp
     lamp = load_rig_config(rig_file).devices.lamp.address
     out = tmp_path / "run"
     run = start_rig("run", str(CAMPAIGN), "--rig", str(rig_file), "--out", str(out), "--quiet")
-    wait_until(lambda: pending_points(out) >= 4, run, "four points measured")
+    wait_until(lambda: pending_points(out) >= 2, run, "two points measured")
 
     # A second client while the campaign runs is refused, before it touches any device.
     second = start_rig("devices", str(rig_file))

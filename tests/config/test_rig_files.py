@@ -66,6 +66,16 @@ def test_a_driver_that_is_not_installed_is_refused_naming_those_that_are():
         check_devices(lab.model_copy(update={"devices": devices}))
 
 
+def test_a_camera_that_calibrates_itself_refuses_a_calibration_file():
+    from rig.devices import check_devices
+
+    lab = load_rig_config(RIGS / "example-lab.yaml")            # the LMK: calibrated luminance from LabSoft
+    check_devices(lab)
+    camera = lab.camera.model_copy(update={"calibration_file": "cam.yaml"})
+    with pytest.raises(RigConfigError, match=r"camera.calibration_file'.*'lmk' delivers calibrated luminance"):
+        check_devices(lab.model_copy(update={"camera": camera}))
+
+
 def test_a_plug_in_entry_is_its_name_and_its_options(tmp_path):
     f = tmp_path / "rig.yaml"
     f.write_text(yaml.safe_dump({"devices": {"lamp": {"driver": "keithley-2200", "address": "tcp://x", "channel": 2},
@@ -152,7 +162,7 @@ def test_bad_addresses_are_refused(tmp_path, device, address):
                                      "modbus-rtu://COM3", "modbus-rtu://socket://10.0.0.5:4001"])
 def test_good_positioner_addresses_load(tmp_path, address):
     """What the rig file accepts, the driver can open (it does not connect until asked)."""
-    from rig.drivers.modbus_axis import modbus_client
+    from rig.drivers.modbus_drive import modbus_client
 
     f = tmp_path / "rig.yaml"
     f.write_text(yaml.safe_dump({"devices": {"arm": {"address": address}}}))
@@ -285,3 +295,32 @@ def test_hardware_rig_without_addresses_or_camera_is_bad_input(devices, key):
     cfg = RigConfig.model_validate({"simulated": False, "devices": devices})
     with pytest.raises(RigConfigError, match=f"'{key}'.*only .* the simulated rig"):
         check_devices(cfg)
+
+
+def test_a_drive_map_of_ones_own_is_read_relative_to_the_rig_file(tmp_path):
+    from importlib import resources
+
+    az = resources.files("rig.drivers").joinpath("drive_maps", "oriental-az.yaml").read_text("utf-8")
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "my-drive.yaml").write_text(az.replace("Oriental Motor AZ series", "My drive"))
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("name: lab\ndevices:\n  arm: {map: maps/my-drive.yaml, device_ids: [5, 6]}\n")
+    cfg = load_rig_config(rig)
+    assert cfg.devices.arm.map == str(tmp_path / "maps" / "my-drive.yaml") and cfg.devices.stage.map == "oriental-az"
+    (tmp_path / "maps" / "my-drive.yaml").write_text(az.replace("0x0058", "-1"))
+    with pytest.raises(RigConfigError, match=r"rig.yaml: key 'devices.arm.map': .*my-drive.yaml: key 'move.address'"):
+        load_rig_config(rig)
+
+
+@pytest.mark.parametrize("entry, message", [
+    ("{map: fancy-drive}", "no such packaged map (known: oriental-az"),
+    ("{device_ids: [1, 1]}", "the two drives need two ids"),
+    ("{device_ids: [0, 2]}", "greater than or equal to 1"),
+    ("{steps_per_degree: [1000]}", "steps_per_degree"),
+])
+def test_bad_modbus_drive_entries_are_refused(tmp_path, entry, message):
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(f"name: lab\ndevices:\n  stage: {entry}\n")
+    with pytest.raises(RigConfigError) as err:
+        load_rig_config(rig)
+    assert "devices.stage" in str(err.value) and message in str(err.value)

@@ -32,7 +32,7 @@ raise_on_import = False
 
 def test_rigs_own_drivers_are_installed_with_their_roles():
     found = {d.name: d for d in installed_drivers()}
-    expected = {"modbus-axis": "positioner", "zaber": "positioner", "delta-sm": "lamp", "p9710": "meter",
+    expected = {"modbus-drive": "positioner", "zaber": "positioner", "delta-sm": "lamp", "p9710": "meter",
                 "lmk": "camera", "genicam": "camera", "rig-sim-camera": "camera"}
     for name, role in expected.items():
         assert found[name].role == role and found[name].problem is None, found[name]

@@ -5,9 +5,8 @@ import pytest
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
 from rig.core.motion import move_time_s, position_at
-from rig.drivers.modbus_axis_map import Alarm
 from rig.physics.brdf_models import get_model
-from rig.simulators.axis_model import AxisModel
+from rig.simulators.axis_model import Alarm, AxisModel
 from rig.simulators.world import SimWorld
 
 CFG = AxisConfig(limits_deg=(-90, 90), speed_deg_s=10, accel_deg_s2=20, settle_s=0.2)
