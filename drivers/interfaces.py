@@ -207,6 +207,28 @@ class CalibratedLuminanceCamera(LuminanceCamera, abc.ABC):
         raise DeviceError(self.identity(), "delivers calibrated luminance only: it takes its own dark frames")
 
 
+class Attenuator(Device, abc.ABC):
+    """A motorised neutral-density filter wheel in front of the camera: it attenuates the light the camera
+    sees by the transmission of the filter in the beam. Positions are the wheel's own numbers (1 …
+    `positions`); their calibrated transmissions are the rig file's (`attenuator.filters`), not the
+    driver's. Moving blocks until the wheel has settled."""
+
+    ROLE: ClassVar[str] = "attenuator"      # its role among installed drivers (rig.drivers.registry)
+
+    positions: int
+
+    @abc.abstractmethod
+    def identity(self) -> str: ...
+
+    @abc.abstractmethod
+    def move_to(self, position: int) -> None:
+        """Put filter `position` in the beam and return once the wheel is there."""
+
+    @abc.abstractmethod
+    def position(self) -> int:
+        """The position in the beam, as the wheel reports it."""
+
+
 @dataclass
 class RigDevices:
     """The five devices of one goniophotometer and the clock they run on."""
@@ -218,11 +240,13 @@ class RigDevices:
     camera: LuminanceCamera
     clock: Clock
     simulated: bool = False
+    attenuator: Attenuator | None = None
 
     def identities(self) -> dict[str, str]:
         return {"arm": self.arm.identity(), "stage": self.stage.identity(),
                 "lamp": self.lamp.identity(), "meter": self.meter.identity(),
-                "camera": self.camera.identity()}
+                "camera": self.camera.identity(),
+                **({"attenuator": self.attenuator.identity()} if self.attenuator else {})}
 
     def route_events(self, sink) -> None:
         """Send every driver's retry/reconnect events to `sink(kind, **fields)`.
@@ -231,7 +255,8 @@ class RigDevices:
         the controller they share.
         """
         axes = (*self.arm.axes, *self.stage.axes)
-        for dev in (self.lamp, self.meter, self.camera, *(getattr(a, "controller", a) for a in axes)):
+        optional = [self.attenuator] if self.attenuator is not None else []
+        for dev in (self.lamp, self.meter, self.camera, *optional, *(getattr(a, "controller", a) for a in axes)):
             if hasattr(dev, "events"):
                 dev.events = sink
 
@@ -247,8 +272,10 @@ class RigDevices:
         return problems
 
     def close(self) -> None:
-        for dev in (self.arm, self.stage, self.lamp, self.meter, self.camera):
+        closers = [self.arm.close, self.stage.close, self.lamp.close, self.meter.close, self.camera.close,
+                   *([self.attenuator.close] if self.attenuator is not None else [])]
+        for close in closers:
             try:
-                dev.close()
+                close()
             except Exception:  # closing is best effort once the rig is safe
                 pass

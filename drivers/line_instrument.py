@@ -56,9 +56,12 @@ class LineInstrument(RetryingDevice):
     """An ASCII instrument on a pyserial URL (`socket://host:port`, a serial port, a pty path)."""
 
     def __init__(self, url: str, *, name: str, clock: Clock, timeout_s: float, retry: RetryPolicy,
-                 baudrate: int = 9600, open_port: PortOpener = open_pyserial):
+                 baudrate: int = 9600, terminator: bytes = b"\n", write_terminator: bytes | None = None,
+                 echo: bool = False, open_port: PortOpener = open_pyserial):
+        """`terminator`, `write_terminator`, `echo`: the framing, as `LineTransport` takes it."""
         super().__init__(name, clock, retry)
-        self.link = LineTransport(name, url, timeout_s=timeout_s, baudrate=baudrate, open_port=open_port)
+        self.link = LineTransport(name, url, terminator=terminator, timeout_s=timeout_s, baudrate=baudrate,
+                                  write_terminator=write_terminator, echo=echo, open_port=open_port)
 
     def reconnect(self) -> None:
         self.link.reconnect()

@@ -23,12 +23,12 @@ from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
-from rig.drivers.interfaces import IlluminanceMeter, LampSupply, LuminanceCamera
+from rig.drivers.interfaces import Attenuator, IlluminanceMeter, LampSupply, LuminanceCamera
 
 GROUP = "rig.drivers"
 #: Roles a driver can fill, and the interface its class must implement (None: checked by its connector).
 ROLES: dict[str, type | None] = {"positioner": None, "lamp": LampSupply, "meter": IlluminanceMeter,
-                                 "camera": LuminanceCamera, "attenuator": None}
+                                 "camera": LuminanceCamera, "attenuator": Attenuator}
 
 
 #: rig's own drivers, exactly as its pyproject.toml registers them (a test holds the two equal): found even
@@ -36,7 +36,7 @@ ROLES: dict[str, type | None] = {"positioner": None, "lamp": LampSupply, "meter"
 BUILTIN = {"modbus-drive": "rig.drivers.modbus_drive:ModbusDriveLink", "zaber": "rig.drivers.zaber:ZaberChain",
            "delta-sm": "rig.drivers.delta_sm:DeltaSM",
            "p9710": "rig.drivers.p9710:P9710", "lmk": "rig.drivers.lmk:LmkCamera",
-           "genicam": "rig.drivers.genicam:GenICamCamera",
+           "genicam": "rig.drivers.genicam:GenICamCamera", "fw102c": "rig.drivers.fw102c:FW102C",
            "rig-sim-camera": "rig.drivers.sim_camera:ServedCamera"}
 
 

@@ -49,11 +49,15 @@ def open_pyserial(url: str, *, baudrate: int, timeout: float, write_timeout: flo
 
 class LineTransport:
     def __init__(self, device: str, url: str, *, terminator: bytes = b"\n", timeout_s: float = 2.0,
-                 baudrate: int = 9600, write_terminator: bytes | None = None, open_port: PortOpener = open_pyserial):
+                 baudrate: int = 9600, write_terminator: bytes | None = None, echo: bool = False,
+                 open_port: PortOpener = open_pyserial):
+        """`terminator` ends a reply: a line end, or a prompt (`> `) for a terminal-style instrument;
+        `echo`: the instrument first repeats each line it receives, which `read_line` checks and strips."""
         self.device = device
         self.url = url
         self.terminator = terminator
         self.write_terminator = terminator if write_terminator is None else write_terminator
+        self.echo = echo
         self.timeout_s = timeout_s
         self.baudrate = baudrate
         self._open_port = open_port
@@ -128,9 +132,16 @@ class LineTransport:
             raise DeviceError(self.device, f"no complete reply to {request!r} within {wait_s:g} s "
                               f"(got {raw!r})", transient=True)
         try:
-            return raw[:-len(self.terminator)].decode("ascii").strip()
+            reply = raw[:-len(self.terminator)].decode("ascii")
         except UnicodeDecodeError:
             raise DeviceError(self.device, f"garbled reply to {request!r}: {raw!r}", transient=True) from None
+        if self.echo:
+            echo = request + self.write_terminator.decode("ascii")
+            if not reply.startswith(echo):
+                raise DeviceError(self.device, f"the reply to {request!r} does not begin with its echo: {raw!r}",
+                                  transient=True)
+            reply = reply[len(echo):]
+        return reply.strip()
 
     def query(self, line: str, timeout_s: float | None = None) -> str:
         self.write_line(line)

@@ -27,7 +27,8 @@ __all__ = ["POSITIONER_AXES", "camera_class", "check_devices", "connect_devices"
 
 
 #: The role of each device entry (rig.drivers.registry.ROLES).
-ROLE_OF = {"arm": "positioner", "stage": "positioner", "lamp": "lamp", "meter": "meter", "camera": "camera"}
+ROLE_OF = {"arm": "positioner", "stage": "positioner", "lamp": "lamp", "meter": "meter", "camera": "camera",
+           "attenuator": "attenuator"}
 
 
 def _settings(config: RigConfig, which: str) -> Any:
@@ -111,6 +112,8 @@ def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
         _check_addresses(config)
         for which in ROLE_OF:
             entry = getattr(config.devices, which)
+            if entry is None:                   # an optional device the rig does not have
+                continue
             if which == "camera" and entry.driver.startswith("python:"):
                 cls: Any = camera_class(entry, config.camera)
             elif entry.driver != "simulated":
@@ -132,9 +135,9 @@ def _calibrates_itself(build: Any) -> bool:
 
 
 def _check_addresses(config: RigConfig) -> None:
-    for name in ("arm", "stage", "lamp", "meter"):
+    for name in ("arm", "stage", "lamp", "meter", "attenuator"):
         entry = getattr(config.devices, name)
-        if entry.driver == entry.BUILTIN and entry.address == "auto":
+        if entry is not None and entry.driver == entry.BUILTIN and entry.address == "auto":
             raise RigConfigError(f"key 'devices.{name}.address': address 'auto' only works on the simulated rig; "
                                  "give the device's address")
 
@@ -184,10 +187,13 @@ def connect_devices(config: RigConfig, clock: Clock, camera: LuminanceCamera | N
         opened.append(lamp)
         meter = _connect(config, "meter", clock)
         opened.append(meter)
+        attenuator = None if d.attenuator is None else _connect(config, "attenuator", clock)
+        if attenuator is not None:
+            opened.append(attenuator)
         if camera is None:
             camera = connect_camera(config, clock)
         return RigDevices(arm=arm, stage=stage, lamp=lamp, meter=meter, camera=camera, clock=clock,
-                          simulated=config.simulated)
+                          simulated=config.simulated, attenuator=attenuator)
     except BaseException:
         for dev in reversed(opened):
             try:

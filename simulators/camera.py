@@ -41,14 +41,15 @@ class SimCamera(LuminanceCamera):
         return "simulated LMK 98-4 (rig sim)"
 
     def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
-        """Noise-free scene luminance (cd/m², (height, width)) at the true (physical) motor angles."""
+        """Noise-free luminance (cd/m², (height, width)) reaching the sensor at the true (physical) motor
+        angles: the scene's, through the filter-wheel filter in the beam (true transmission), if any."""
         cfg = self.world.config
         alpha, beta, a, b = np.radians(self.world.motor_angles_deg())
         origin, rays = pixel_rays(self.optics, a, b, window)
         frame = sample_frame(alpha, beta)
         lum = np.full((window.height, window.width), cfg.simulation.ambient_cd_m2)
         if not faces_lamp(frame[:, 2]):
-            return lum
+            return lum * self.world.transmission()
         points = intersect_sample_plane(origin, rays, frame[:, 2])
         lit = in_beam(points, cfg.geometry.spot_diameter_m / 2)
         keep = lit.ravel()           # compress is 5× faster than boolean indexing of (h, w, 3)
@@ -57,7 +58,7 @@ class SimCamera(LuminanceCamera):
         wi = LAMP_DIRECTION_GCS @ frame
         lum[lit] = (self.world.brdf(wi, wo) * (illuminance_normal_lx * wi[2])
                     * self.texture(xy[:, 0], xy[:, 1]) * self.glint(xy[:, 0], xy[:, 1], wi, wo))
-        return lum
+        return lum * self.world.transmission()         # through the filter in the beam, if any
 
     def capture(self, exposure_s: float, window: Window | None = None) -> Frame:
         return self._expose(exposure_s, window, dark=False)

@@ -40,6 +40,7 @@ LAMP_FAULTS = PeerFaults(("no_reply", "garbled", "short", "disconnect"), ("error
 METER_FAULTS = PeerFaults(("no_reply", "garbled", "short"), ("overload",))
 AXIS_FAULTS = PeerFaults(("no_reply", "garbled", "disconnect"), ("exception", "alarm"))
 ZABER_FAULTS = PeerFaults(("no_reply", "garbled", "short", "disconnect"), ("stall", "limit"))
+ATTENUATOR_FAULTS = PeerFaults(("no_reply", "garbled"), ("stuck",))
 #: Transient faults per peer of the simulated rig.
 TRANSIENT = {"arm": AXIS_FAULTS.transient, "stage": AXIS_FAULTS.transient, "lamp": LAMP_FAULTS.transient,
              "meter": METER_FAULTS.transient}

@@ -133,8 +133,9 @@ class _PtyServer:
     never sees EIO between driver (re)connections. A pty has no modem lines: RTS/DTR ioctls fail
     on it, so the driver must not touch them."""
 
-    def __init__(self, respond: Responder, name: str):
+    def __init__(self, respond: Responder, name: str, terminator: bytes = b"\n"):
         self._respond = respond
+        self._terminator = terminator
         self._master, self._slave = os.openpty()
         tty.setraw(self._master)
         self._wake_r, self._wake_w = os.pipe()
@@ -155,7 +156,7 @@ class _PtyServer:
             if self._wake_r in ready:
                 return
             pending += os.read(self._master, 4096)
-            *lines, pending = pending.split(b"\n")
+            *lines, pending = pending.split(self._terminator)
             for line in lines:
                 reply = self._respond(line)
                 if reply is not None:
@@ -173,11 +174,13 @@ class LinePeer:
     #: The part of a reply the `short` fault lets through (no terminator).
     SHORT_FRACTION = 0.5
 
-    def __init__(self, medium: Literal["tcp", "pty"], *, exclusive: bool = False):
+    def __init__(self, medium: Literal["tcp", "pty"], *, exclusive: bool = False, terminator: bytes = b"\n"):
         """`exclusive` (TCP; read at `start`): refuse a second client while one is connected, so that two
-        programs never interleave exchanges. A pty needs no flag: the driver opens it with an exclusive lock."""
+        programs never interleave exchanges. A pty needs no flag: the driver opens it with an exclusive lock.
+        `terminator` (pty): what ends a received line (a CR for an instrument that takes CR-terminated lines)."""
         self.medium = medium
         self.exclusive = exclusive
+        self.terminator = terminator
         self.url: str | None = None
         self._server: _TcpServer | _PtyServer | None = None
         self._faults: deque[str] = deque()
@@ -199,7 +202,7 @@ class LinePeer:
             raise RuntimeError(f"{type(self).__name__} already started on {self.url}")
         name = type(self).__name__
         self._server = (_TcpServer(self.respond, name, self.exclusive) if self.medium == "tcp"
-                        else _PtyServer(self.respond, name))
+                        else _PtyServer(self.respond, name, self.terminator))
         self.url = self._server.address
         return self.url
 

@@ -18,12 +18,13 @@ from rig.drivers.interfaces import RigDevices
 from rig.physics.brdf_models import get_model
 from rig.simulators.camera import SimCamera
 from rig.simulators.delta_sm_peer import DeltaSMPeer
+from rig.simulators.fw102c_peer import FW102CPeer
 from rig.simulators.oriental_az_peer import OrientalAZPeer
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
 from rig.simulators.zaber_peer import ZaberPeer
 
-Peer = OrientalAZPeer | ZaberPeer | DeltaSMPeer | P9710Peer
+Peer = OrientalAZPeer | ZaberPeer | DeltaSMPeer | P9710Peer | FW102CPeer
 #: A Zaber positioner's (device, axis) addresses when its rig-file entry gives none (the driver's default).
 ZABER_AXES = ((1, 1), (2, 1))
 #: The drive map the simulated Modbus drives (OrientalAZPeer) answer.
@@ -49,11 +50,26 @@ def _positioner_peer(world: SimWorld, name: str) -> OrientalAZPeer | ZaberPeer:
                           steps_per_degree=entry.steps_per_degree)
 
 
+def _attenuator_peer(world: SimWorld) -> FW102CPeer:
+    """The filter wheel's peer; the camera sees through the filter at its position."""
+    entry = world.config.devices.attenuator
+    assert entry is not None and world.config.attenuator is not None
+    if entry.driver != entry.BUILTIN:
+        raise RigConfigError(f"key 'devices.attenuator.driver': the simulated rig has a peer for {entry.BUILTIN} "
+                             f"filter wheels, not {entry.driver!r}")
+    wheel = FW102CPeer(world, positions=6 if max(f.position for f in world.config.attenuator.filters) <= 6 else 12)
+    world.filter_position = lambda: wheel.position
+    return wheel
+
+
 def protocol_peers(world: SimWorld) -> dict[str, Peer]:
-    """The peers of the rig's four wire-protocol devices (arm, stage, lamp, meter), not yet started."""
+    """The peers of the rig's wire-protocol devices (arm, stage, lamp, meter, and the filter wheel if the rig
+    has one), not yet started."""
     peers: dict[str, Peer] = {name: _positioner_peer(world, name) for name in POSITIONER_AXES}
     peers["lamp"] = DeltaSMPeer(world)
     peers["meter"] = P9710Peer(world)
+    if world.config.devices.attenuator is not None:
+        peers["attenuator"] = _attenuator_peer(world)
     return peers
 
 

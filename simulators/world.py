@@ -37,6 +37,14 @@ class SimWorld:
         sim = config.simulation
         self.lamp = LampPhysics(self.clock, config.lamp.current_a, sim.lamp_exponent,
                                 sim.warmup_amplitude, sim.warmup_tau_s, sim.drift_per_hour)
+        #: True transmission of each filter-wheel position: the certificate's value off by an error drawn
+        #: once per run within its stated uncertainty (an rng of its own, so that a rig with a wheel draws
+        #: every other truth as one without).
+        filters = config.attenuator.filters if config.attenuator else []
+        errors = np.random.default_rng([sim.seed, 1288]).standard_normal(len(filters))
+        self.transmission_truth = {f.position: f.transmission * (1.0 + f.u_rel * e) for f, e in zip(filters, errors)}
+        #: The filter-wheel position in the beam, registered by the simulated wheel (None: no wheel).
+        self.filter_position: Callable[[], int] | None = None
 
     def spend_s(self, seconds: float) -> None:
         """Let `seconds` of rig time pass inside an instrument (a meter integrating, a camera exposing),
@@ -54,6 +62,11 @@ class SimWorld:
     def illuminance_normal_lx(self, t: float | None = None) -> float:
         """True E⊥ on the sample plane at time t (now if None)."""
         return self.config.simulation.illuminance_normal_lx * self.lamp.relative_output(t)
+
+    def transmission(self) -> float:
+        """True transmission of what is in front of the camera now (1: no wheel, or a position without a
+        calibrated filter, i.e. an open one)."""
+        return 1.0 if self.filter_position is None else self.transmission_truth.get(self.filter_position(), 1.0)
 
     def motor_angles_deg(self) -> tuple[float, float, float, float]:
         """True axis positions (stage_vertical, stage_normal, arm_azimuth, arm_polar)."""

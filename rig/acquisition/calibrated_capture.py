@@ -143,7 +143,7 @@ def reduce_calibrated(acq: CalibratedAcquisition) -> PointCapture:
         saturated_fraction = image.overflow_fraction
     return PointCapture(
         luminance_cd_m2=stats.mean,
-        u_luminance_cd_m2=float(np.hypot(stats.u_mean, acq.calibration_u_rel * stats.mean)),
+        u_luminance_cd_m2=stats.u_luminance(acq.calibration_u_rel),
         roi_std_cd_m2=stats.std,
         exposures_s=image.exposures_s,
         saturated_fraction=saturated_fraction,
@@ -154,6 +154,8 @@ def reduce_calibrated(acq: CalibratedAcquisition) -> PointCapture:
         u_noise_cd_m2=0.0,
         u_dark_cd_m2=0.0,
         u_texture_cd_m2=stats.u_texture,
+        u_lobe_cd_m2=stats.u_lobe, lobe_bias_rel=stats.lobe_bias_rel, lobe_width_rel=stats.lobe_width_rel,
+        lobe_slope_rel=stats.lobe_slope_rel,
         capture_time_s=acq.capture_time_s,
         n_darks=0,
     )

@@ -308,6 +308,9 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
 def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O.
 
+    The luminance is the value at the ROI centre: the ROI mean corrected for a resolved lobe's curvature
+    (rig.physics.footprint), whose uncertainty adds to u_luminance.
+
     A camera with a calibration file (`rig calibrate camera`) has its flat field (lens fall-off and PRNU)
     divided out of the merged rate, pixel by pixel, before its coefficient applies."""
     if isinstance(acq, CalibratedAcquisition):
@@ -326,7 +329,7 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal[in_merged] ** 2)
     return PointCapture(
         luminance_cd_m2=stats.mean,
-        u_luminance_cd_m2=float(np.hypot(stats.u_mean, sensor.calibration_u_rel * stats.mean)),
+        u_luminance_cd_m2=stats.u_luminance(sensor.calibration_u_rel),
         roi_std_cd_m2=stats.std,
         exposures_s=acq.exposures_s,
         saturated_fraction=float(np.mean(merged.saturated[in_merged])),
@@ -337,6 +340,10 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
         u_noise_cd_m2=stats.u_mean_noise,
         u_dark_cd_m2=float(np.sqrt(var_dark) * cal[in_merged].mean()),
         u_texture_cd_m2=stats.u_texture,
+        u_lobe_cd_m2=stats.u_lobe,
+        lobe_bias_rel=stats.lobe_bias_rel,
+        lobe_width_rel=stats.lobe_width_rel,
+        lobe_slope_rel=stats.lobe_slope_rel,
         capture_time_s=acq.capture_time_s,
         n_darks=acq.n_darks,
     )

@@ -28,13 +28,16 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from rig.acquisition.capture import DarkFrameCache, acquire_point, reduce_point
+from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
+from rig.acquisition.calibrated_capture import point_windows
+from rig.acquisition.capture import DarkFrameCache
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
 from rig.acquisition.moves import CollisionError, Motors, Mover
 from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_of
 from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
+from rig.acquisition.summary import run_summary
 from rig.acquisition.suspenders import Retake, Suspender, device_silent, install
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
@@ -44,7 +47,7 @@ from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
 from rig.physics import geometry as geo
-from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
+from rig.physics.footprint import view_footprint_deg
 from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule, estimate
 from rig.physics.optics import roi_inside_spot
 from rig.planning.points import Plan, PlannedPoint
@@ -74,6 +77,7 @@ class Runner:
         self.settings = campaign.capture.settings()
         self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure, clock=devices.clock)
         self.optics = camera_optics(rig)
+        self.footprint_deg = view_footprint_deg(self.optics, point_windows(devices.camera, self.settings)[0])
         ill = campaign.illuminance
         self.schedule = ReadingSchedule(ill.remeasure, ill.every)
         self.t0 = devices.clock.now()
@@ -89,6 +93,7 @@ class Runner:
                                  devices.camera.sensor.calibration_u_rel)
         self.ledger = Ledger(writer, done_rows, constants, ill.correction == "interpolate", self.eta, self.rig_time)
         devices.route_events(self._device_event)       # from here on a driver's retry is reported
+        self.attenuation = attenuation_for(devices, rig.attenuator, self._device_event)
         self.mover = Mover(devices, rig)
         self.eta.plan(point_estimates_s(plan, self.mover.position, rig.axes, NOMINAL_CAPTURE_S), self.done_ids)
 
@@ -269,15 +274,15 @@ class Runner:
         motors = self.mover.read_back()
         angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
         time_utc, rig_time = utc_now(), self.rig_time()
-        acquisition = acquire_point(self.dev.camera, self.settings, self.darks)
+        acquisition, used = acquire_through(self.attenuation, self.dev.camera, self.settings, self.darks)
         if next_point is not None:
             self.mover.start(next_point.motors_deg)      # merging and writing overlap the next move
-        cap = reduce_point(acquisition)
+        cap = reduce_through(acquisition, used)
         m = np.radians(motors)
         lit = roi_inside_spot(m[0], m[1], m[2], m[3], self.settings.roi_px, self.optics,
                               self.rig.geometry.spot_diameter_m / 2)
         measurement = Measurement(point, motors, angles, cap, cap.flags + (() if lit else ("roi_unlit",)),
-                                  time_utc, rig_time)
+                                  time_utc, rig_time, self.footprint_deg)
         if cap.image_cd_m2 is not None:
             self.writer.write_image(point.point_id, cap.image_cd_m2,
                                     point_image_metadata(point.point_id, angles, cap.exposures_s, cap.roi_window))
@@ -389,9 +394,5 @@ class Runner:
         finally:
             self.writer.event("safe_state", lamp_off=not any(p.startswith("lamp") for p in problems),
                               problems=problems, rig_time_s=self.rig_time())
-            self.writer.update_manifest(
-                status=ending.status, finished_utc=utc_now(), rig_time_s=self.rig_time(),
-                counts={"planned": self.plan.n_planned, "measured": self.measured, "skipped": len(self.plan.skipped),
-                        "not_measured": len(self.plan.points) - self.measured},
-                uncertainty_budget=campaign_budget(self.ledger.rows, BUDGET_COLUMNS),
-                **({"error": ending.error} if ending.error else {}))
+            self.writer.update_manifest(**run_summary(ending, self.plan, self.measured, self.ledger.rows,
+                                                      self.footprint_deg, self.rig_time()))

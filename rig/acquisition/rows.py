@@ -16,7 +16,7 @@ import numpy as np
 
 from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
-from rig.physics.budget import point_budget
+from rig.physics.budget import lobe_angle_u_rel, point_budget
 from rig.physics.illuminance import IlluminanceEstimate, interpolate
 from rig.physics.pipeline import brdf_from_luminance
 from rig.planning.points import PlannedPoint
@@ -33,6 +33,8 @@ class Measurement:
     flags: tuple[str, ...]
     time_utc: str
     rig_time_s: float
+    #: Half-angle of the view directions the ROI averages over (rig.physics.footprint.view_footprint_deg).
+    footprint_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -48,12 +50,17 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
              constants: RowConstants) -> dict[str, Any]:
     """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
-    res = brdf_from_luminance(cap.luminance_cd_m2, cap.u_luminance_cd_m2, e_perp_lx, u_e_perp_lx,
+    u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.angle_u_deg)
+    u_luminance = float(np.hypot(cap.u_luminance_cd_m2, u_angle_lobe * cap.luminance_cd_m2))
+    res = brdf_from_luminance(cap.luminance_cd_m2, u_luminance, e_perp_lx, u_e_perp_lx,
                               theta_i, constants.angle_u_deg, grazing_limit_deg=constants.grazing_limit_deg)
     flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
     budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=cap.u_luminance_cd_m2,
                           u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
-                          u_texture_cd_m2=cap.u_texture_cd_m2, calibration_u_rel=constants.calibration_u_rel,
+                          u_texture_cd_m2=cap.u_texture_cd_m2, u_lobe_cd_m2=cap.u_lobe_cd_m2,
+                          lobe_angle_u_rel=u_angle_lobe,
+                          calibration_u_rel=constants.calibration_u_rel,
+                          attenuation_u_rel=cap.u_rel_attenuation,
                           e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,
                           theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg)
     return {
@@ -68,7 +75,10 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
         "exposures_s": list(cap.exposures_s), "saturated_fraction": cap.saturated_fraction,
         "flags": ";".join(dict.fromkeys(flags)), "time_utc": m.time_utc, "rig_time_s": m.rig_time_s,
         "u_illuminance_normal_lx": u_e_perp_lx, "roi_std_cd_m2": cap.roi_std_cd_m2,
-        "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s, **budget,
+        "n_frames": cap.n_frames, "capture_time_s": cap.capture_time_s,
+        "filter_position": cap.filter_position, "filter_transmission": cap.transmission,
+        "footprint_deg": m.footprint_deg, "lobe_bias_rel": cap.lobe_bias_rel,
+        "lobe_width_deg": cap.lobe_width_rel * m.footprint_deg, **budget,
     }
 
 

@@ -17,7 +17,7 @@ from rig.acquisition.resume import prepare_resume
 from rig.cli import bench, calibrate, export, fit, import_alta, plot, sim
 from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
-from rig.config.rigfile import RigConfig, load_rig_config
+from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
 from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
 from rig.data.dataset import DatasetWriter
@@ -56,7 +56,7 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
 
 def _rig_config(args: argparse.Namespace) -> RigConfig:
     """The --rig file, or the built-in simulated rig."""
-    return load_rig_config(args.rig) if args.rig else RigConfig()
+    return load_rig_config(args.rig) if args.rig else simulated_rig()
 
 
 def _load(args: argparse.Namespace) -> tuple[Campaign, RigConfig, Plan]:

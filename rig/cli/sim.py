@@ -11,7 +11,7 @@ from types import FrameType
 
 from rig.config.campaign import load_campaign
 from rig.config.files import ConfigFileError
-from rig.config.rigfile import RigConfig, load_rig_config
+from rig.config.rigfile import load_rig_config, simulated_rig
 from rig.core.exits import EXIT_OK, fail
 
 #: How often (wall seconds) the server lets the lamp supply's watchdog act without a command.
@@ -24,7 +24,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     out = Path(args.rig_file)
     try:
-        base = load_rig_config(args.base) if args.base else RigConfig()
+        base = load_rig_config(args.base) if args.base else simulated_rig()
         sample = PAPER_RM1
         if args.campaign:
             truth = load_campaign(args.campaign).sample.simulated_brdf

@@ -217,12 +217,24 @@ class CameraDevice(DeviceEntry):
         return self
 
 
+class AttenuatorDevice(DeviceEntry):
+    """A motorised neutral-density filter wheel before the camera (rig.acquisition.attenuation); rig's own
+    driver is the Thorlabs FW102C/FW212C (docs/fw102c.md). Its filters' transmissions: `attenuator:`."""
+
+    BUILTIN = "fw102c"
+    driver: str = BUILTIN
+    address: SerialAddress = "auto"   # e.g. /dev/ttyUSB2 (the wheel's USB virtual COM port)
+    timeout_s: Seconds = 1.0
+
+
 class DevicesConfig(StrictModel):
     arm: PositionerDevice = PositionerDevice()
     stage: PositionerDevice = PositionerDevice()
     lamp: LampDevice = LampDevice()
     meter: MeterDevice = MeterDevice()
     camera: CameraDevice = CameraDevice()
+    #: Optional: without one, a point whose ROI saturates at the shortest exposure stays a lower bound.
+    attenuator: AttenuatorDevice | None = None
 
 
 #: Axes of each positioner, in controller axis order.

@@ -23,7 +23,7 @@ from pydantic import AfterValidator, Field, StringConstraints, model_validator
 from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
-from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, DevicesConfig
+from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, AttenuatorDevice, DevicesConfig
 from rig.config.strict import StrictModel
 from rig.config.zones import CollisionsConfig
 from rig.core.values import SensorInfo
@@ -199,6 +199,40 @@ class SimulationConfig(StrictModel):
     nonlinearity_rel: float = Field(0.0, ge=0, le=0.5)
 
 
+class FilterConfig(StrictModel):
+    """One position of the filter wheel and its calibrated transmission (certificate: value and relative
+    standard uncertainty, at the camera's spectral response)."""
+
+    position: int = Field(ge=1, le=12)
+    transmission: float = Field(gt=0, le=1)
+    u_rel: Rel = 0.0
+
+
+class AttenuatorConfig(StrictModel):
+    """The filters of `devices.attenuator`: the clearest is used wherever it does not saturate."""
+
+    filters: list[FilterConfig] = Field(min_length=2, max_length=12)
+
+    @model_validator(mode="after")
+    def _distinct(self):
+        positions = [f.position for f in self.filters]
+        if len(set(positions)) != len(positions):
+            raise ValueError(f"filters: each position once, got {positions}")
+        transmissions = sorted(f.transmission for f in self.filters)
+        if any(a == b for a, b in zip(transmissions, transmissions[1:])):
+            raise ValueError("filters: two filters with the same transmission; one would never be chosen")
+        return self
+
+
+#: The simulated rig's filter wheel: an open position and ND filters of optical density 1 … 5 (Thorlabs NE-A
+#: series), transmissions as a certificate would state them at the camera's V(λ) response.
+SIMULATED_FILTERS = AttenuatorConfig(filters=[
+    FilterConfig(position=1, transmission=1.0),
+    FilterConfig(position=2, transmission=0.1, u_rel=0.01), FilterConfig(position=3, transmission=0.01, u_rel=0.01),
+    FilterConfig(position=4, transmission=1e-3, u_rel=0.015), FilterConfig(position=5, transmission=1e-4, u_rel=0.02),
+    FilterConfig(position=6, transmission=1e-5, u_rel=0.03)])
+
+
 class RigConfig(StrictModel):
     name: Annotated[str, StringConstraints(min_length=1, max_length=200), AfterValidator(printable)] = "simulated"
     simulated: bool = True
@@ -213,6 +247,14 @@ class RigConfig(StrictModel):
     meter: MeterConfig = MeterConfig()
     collisions: CollisionsConfig = CollisionsConfig()
     simulation: SimulationConfig = SimulationConfig()
+    attenuator: AttenuatorConfig | None = None
+
+    @model_validator(mode="after")
+    def _attenuator_has_filters(self):
+        if (self.devices.attenuator is None) != (self.attenuator is None):
+            raise ValueError("devices.attenuator and the attenuator section (its filters) go together: give both "
+                             "or neither")
+        return self
 
     @model_validator(mode="after")
     def _reading_within_watchdog(self):
@@ -240,8 +282,9 @@ class RigConfig(StrictModel):
         """Every axis's limits, speed and acceleration, in steps, fit the controller's int32 registers,
         and speed and acceleration are at least one step (a zero would never move)."""
         for positioner, axes in POSITIONER_AXES.items():
-            steps = getattr(self.devices, positioner).steps_per_degree
-            for name in axes:
+            per_axis = getattr(self.devices, positioner).steps_per_degree
+            for index, name in enumerate(axes):
+                steps = per_axis if isinstance(per_axis, float | int) else per_axis[index]
                 axis = getattr(self.axes, name)
                 for what, value in (("limits_deg", max(map(abs, axis.limits_deg))), ("speed_deg_s", axis.speed_deg_s),
                                     ("accel_deg_s2", axis.accel_deg_s2)):
@@ -294,3 +337,9 @@ def load_rig_config(path: str | Path) -> RigConfig:
     except ConfigFileError as exc:
         raise RigConfigError(f"{path}: key 'camera.calibration_file': {exc}") from None
     return config.model_copy(update={"camera": camera})
+
+
+def simulated_rig() -> RigConfig:
+    """The built-in simulated rig (`rig run` without `--rig`; campaigns/rigs/simulated.yaml spells it out):
+    the defaults, plus a filter wheel (SIMULATED_FILTERS)."""
+    return RigConfig(devices=DevicesConfig(attenuator=AttenuatorDevice()), attenuator=SIMULATED_FILTERS)

@@ -118,7 +118,7 @@ class PointCapture:
     The uncertainty components are for the budget table; they are not to be
     added to u_luminance_cd_m2, which already holds them. u_block (the spread of
     block means, `rig.physics.roi`) contains the camera noise and the texture:
-    u_block² ≈ u_noise² + u_texture², u_luminance² = u_block² + (u_rel,cal · L)²;
+    u_block² ≈ u_noise² + u_texture², u_luminance² = u_block² + u_lobe² + (u_rel,cal · L)²;
     and u_noise² = u_frames² + u_dark², where only u_frames is independent from
     point to point (u_dark is shared by the points that reuse the same darks).
     A camera delivering calibrated luminance gives no per-pixel variance: there
@@ -137,6 +137,22 @@ class PointCapture:
     n_frames: int                      # raw frames taken, darks excluded
     u_noise_cd_m2: float               # camera noise of the ROI mean, from the merge variance
     u_dark_cd_m2: float                # the part of u_noise due to the subtracted dark frames
-    u_texture_cd_m2: float             # ROI non-uniformity: √max(u_block² − u_noise², 0)
+    u_texture_cd_m2: float             # ROI non-uniformity: √max(u_block² − u_noise², 0), blocks about the lobe
     capture_time_s: float              # rig time taken (clock), else the summed exposure times
     n_darks: int                       # dark frames taken for this point
+    #: The neutral-density filter the point was taken through (rig.acquisition.attenuation): the wheel's
+    #: position (0: none, no attenuator or the open position not used), its calibrated transmission (the
+    #: luminance is already divided by it) and that transmission's relative standard uncertainty (in
+    #: u_luminance_cd_m2 too).
+    filter_position: int = 0
+    transmission: float = 1.0
+    u_rel_attenuation: float = 0.0
+    #: The BRDF lobe's curvature over the ROI's angular footprint (rig.physics.footprint), where the fit
+    #: resolves it (else 0): the relative bias of the ROI mean against the value at the ROI centre, which
+    #: the luminance is corrected to; that correction's standard uncertainty (in u_luminance_cd_m2 too);
+    #: the lobe's half-width over the ROI's half-diagonal, i.e. in units of the view footprint; and its
+    #: log-slope |∇ ln f| at the ROI centre per footprint (how much an angle error moves the value).
+    lobe_bias_rel: float = 0.0
+    u_lobe_cd_m2: float = 0.0
+    lobe_width_rel: float = 0.0
+    lobe_slope_rel: float = 0.0

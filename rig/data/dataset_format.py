@@ -29,7 +29,8 @@ CONTRACT_COLUMNS = (
     "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
 )
 #: Columns after the contract's: capture details and the relative uncertainty budget (k = 1, rig/physics/budget.py).
-PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", *BUDGET_COLUMNS)
+PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", "filter_position",
+                   "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg", *BUDGET_COLUMNS)
 #: brdf.csv as rig writes it.
 BRDF_COLUMNS = CONTRACT_COLUMNS + PROJECT_COLUMNS
 SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
@@ -50,7 +51,8 @@ UNITS = {
     "illuminance_lx": "lx", "illuminance_normal_lx": "lx", "u_illuminance_normal_lx": "lx",
     "stage_vertical_deg": "deg", "stage_normal_deg": "deg", "arm_azimuth_deg": "deg", "arm_polar_deg": "deg",
     "exposures_s": "s", "saturated_fraction": "1", "rig_time_s": "s", "roi_std_cd_m2": "cd/m2",
-    "capture_time_s": "s", **dict.fromkeys(BUDGET_COLUMNS, "1"),
+    "capture_time_s": "s", "filter_transmission": "1",
+    "footprint_deg": "deg", "lobe_bias_rel": "1", "lobe_width_deg": "deg", **dict.fromkeys(BUDGET_COLUMNS, "1"),
 }
 #: brdf.csv columns that are not numbers.
 TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}

@@ -17,17 +17,38 @@ import numpy as np
 BUDGET_COLUMNS = {
     "u_rel_noise": "camera shot and read noise of the ROI mean (HDR merge)",
     "u_rel_dark": "noise of the subtracted dark frame(s)",
-    "u_rel_texture": "ROI non-uniformity: sample texture and glints (block means minus noise)",
+    "u_rel_texture": "ROI non-uniformity: sample texture and glints (block means about the lobe, minus noise)",
+    "u_rel_lobe": "correction of the ROI mean to the ROI centre for the lobe's curvature over the view footprint",
+    "u_rel_lobe_angle": "axis angle errors through the lobe's measured slope (steep lobes only)",
     "u_rel_calibration": "luminance calibration of the camera",
+    "u_rel_attenuation": "transmission of the neutral-density filter in the beam (its calibration)",
     "u_rel_illuminance": "E⊥: meter readings and meter calibration",
     "u_rel_drift": "lamp drift between E⊥ readings",
     "u_rel_angle": "incidence angle, through tan θi",
 }
 
 
+#: Standard uncertainty of the view direction relative to a specular lobe's axis, in units of the per-axis
+#: angle uncertainty: the arm's two axes move ωo by up to u each, the stage's two tilt the sample and so
+#: move the mirror direction against ωo by up to 2u each; 1 + 1 + 4 + 4 = 10 u² over the 2-D offset, half of
+#: it along the lobe's slope.
+LOBE_ANGLE_GAIN = math.sqrt(5.0)
+
+
+def lobe_angle_u_rel(slope_rel: float, footprint_deg: float, angle_u_deg: float) -> float:
+    """Relative u of a point on a steep lobe from the axes' angle errors: the lobe's log-slope measured over
+    the ROI (per footprint, rig.physics.footprint) per degree, times the view direction's uncertainty.
+    0 without a measured slope or footprint (a flat or diffuse ROI: the fit resolves no lobe)."""
+    if footprint_deg <= 0:
+        return 0.0
+    return slope_rel / footprint_deg * angle_u_deg * LOBE_ANGLE_GAIN
+
+
 def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd_m2: float, u_dark_cd_m2: float,
-                 u_texture_cd_m2: float, calibration_u_rel: float, e_perp_lx: float, u_e_perp_lx: float,
-                 u_drift_lx: float, theta_i_deg: float, angle_u_deg: float) -> dict[str, float]:
+                 u_texture_cd_m2: float, u_lobe_cd_m2: float, lobe_angle_u_rel: float, calibration_u_rel: float,
+                 attenuation_u_rel: float,
+                 e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float, theta_i_deg: float,
+                 angle_u_deg: float) -> dict[str, float]:
     """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
 
     The camera parts are relative to the luminance, or to its uncertainty where the ROI is
@@ -40,7 +61,10 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
         "u_rel_noise": math.sqrt(max(u_noise_cd_m2 ** 2 - u_dark_cd_m2 ** 2, 0.0)) / lum,
         "u_rel_dark": u_dark_cd_m2 / lum,
         "u_rel_texture": u_texture_cd_m2 / lum,
+        "u_rel_lobe": u_lobe_cd_m2 / lum,
+        "u_rel_lobe_angle": lobe_angle_u_rel,
         "u_rel_calibration": calibration_u_rel,
+        "u_rel_attenuation": attenuation_u_rel,
         "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2, 0.0)) / e_perp_lx,
         "u_rel_drift": u_drift_lx / e_perp_lx,
         "u_rel_angle": math.tan(math.radians(min(theta_i_deg, 89.9999))) * math.radians(angle_u_deg),

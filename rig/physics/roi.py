@@ -13,6 +13,12 @@ edge-sharing blocks, estimated from the same blocks, is added to the variance
 of their mean (clipped at zero: it may only widen the uncertainty). The propagated per-pixel
 variance alone is reported next to it to show how much of the total is noise,
 and the difference of the two squares is the texture's share.
+
+On a steep glossy lobe the ROI mean is not the value at the ROI centre: its pixels see the sample
+from directions up to the footprint apart (rig.physics.footprint). A quadratic fit of the log block
+means estimates that bias; where it is resolved, the mean is corrected to the centre value, the bias's
+uncertainty becomes its own component (u_lobe), and the texture is the spread of the block means
+about the fitted lobe rather than about their mean (which would count the lobe as texture).
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from rig.physics.footprint import NO_LOBE, LobeFit, fit_lobe
 
 #: Side (px) of the blocks whose means give the uncertainty of the ROI mean.
 BLOCK_PX = 10
@@ -29,17 +37,38 @@ BLOCK_PX = 10
 class RoiStats:
     """Summary of one ROI, in the image's unit (e.g. cd/m²)."""
 
-    mean: float
-    u_mean: float          # standard uncertainty of the mean from the spread of block means
+    mean: float            # ROI mean, corrected to the value at the ROI centre where a lobe is resolved
+    u_mean: float          # standard uncertainty of the mean from the spread of block means (about the lobe)
     u_mean_noise: float    # from the propagated per-pixel variance alone
     std: float             # pixel standard deviation (texture + noise)
     n: int                 # pixels
     n_blocks: int          # whole blocks used for u_mean
+    lobe: LobeFit = NO_LOBE  # the fit of the block means' curvature (rig.physics.footprint)
+    u_lobe: float = 0.0    # standard uncertainty of the lobe correction (0 when none is applied)
 
     @property
     def u_texture(self) -> float:
         """Non-uniformity (texture) part of u_mean: √(u_mean² − u_mean_noise²), 0 if noise explains it all."""
         return float(np.sqrt(max(self.u_mean ** 2 - self.u_mean_noise ** 2, 0.0)))
+
+    def u_luminance(self, calibration_u_rel: float) -> float:
+        """Standard uncertainty of `mean` as a luminance: block spread ⊕ lobe correction ⊕ calibration."""
+        return float(np.linalg.norm([self.u_mean, self.u_lobe, calibration_u_rel * self.mean]))
+
+    @property
+    def lobe_bias_rel(self) -> float:
+        """The relative bias `mean` was corrected for (ROI mean / centre value − 1); 0 when not corrected."""
+        return self.lobe.bias_rel if self.u_lobe > 0 else 0.0
+
+    @property
+    def lobe_slope_rel(self) -> float:
+        """The corrected lobe's log-slope at the ROI centre per footprint; 0 when not corrected."""
+        return self.lobe.slope_rel if self.u_lobe > 0 else 0.0
+
+    @property
+    def lobe_width_rel(self) -> float:
+        """The corrected lobe's half-width in units of the view footprint; 0 when not corrected (or flat)."""
+        return self.lobe.width_rel if self.u_lobe > 0 and np.isfinite(self.lobe.width_rel) else 0.0
 
 
 def mean_noise(variance: np.ndarray) -> float:
@@ -85,21 +114,28 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
     means = block_means(image, block_px)
     if means.size < 2:
         raise ValueError(f"ROI {image.shape} holds fewer than two {block_px}×{block_px} px blocks")
-    n = image.size
-    return RoiStats(mean=float(image.mean()),
-                    u_mean=u_mean_of_blocks(means),
-                    u_mean_noise=mean_noise(variance),
-                    std=float(image.std(ddof=1)),
-                    n=n, n_blocks=int(means.size))
+    n, mean = image.size, float(image.mean())
+    lobe = fit_lobe(means, block_px, image.shape) if mean > 0 else NO_LOBE
+    if not lobe.resolved or lobe.trend is None:
+        return RoiStats(mean=mean, u_mean=u_mean_of_blocks(means), u_mean_noise=mean_noise(variance),
+                        std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe)
+    # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
+    scale = 1.0 / (1.0 + lobe.bias_rel)
+    return RoiStats(mean=mean * scale, u_mean=u_mean_of_blocks(means / lobe.trend) * scale,
+                    u_mean_noise=mean_noise(variance) * scale, std=float(image.std(ddof=1)), n=n,
+                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale)
 
 
 def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:
     """Flags of a point's ROI luminance: `low_signal` when its mean is within `min_snr` standard
     uncertainties of zero (a value the data barely distinguish from none), `roi_saturated` when ROI pixels
-    clipped (the mean is then a lower bound)."""
+    clipped (the mean is then a lower bound), `narrow_lobe` when the BRDF's lobe is narrower than the ROI's
+    angular footprint (the centre value rests on the fitted lobe shape more than on the data near it)."""
     flags = []
     if stats.mean <= min_snr * stats.u_mean:
         flags.append("low_signal")
     if saturated:
         flags.append("roi_saturated")
+    if stats.lobe.narrow:
+        flags.append("narrow_lobe")
     return tuple(flags)

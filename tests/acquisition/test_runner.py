@@ -328,8 +328,8 @@ def test_next_move_starts_before_the_point_is_merged_and_written(tmp_path, monke
     """Merging (a second for a full frame) and writing overlap the move to the next point."""
     import rig.acquisition.engine as runner_module
     log = []
-    reduce = runner_module.reduce_point
-    monkeypatch.setattr(runner_module, "reduce_point", lambda acq: (log.append("merge"), reduce(acq))[1])
+    reduce = runner_module.reduce_through
+    monkeypatch.setattr(runner_module, "reduce_through", lambda acq, used: (log.append("merge"), reduce(acq, used))[1])
     campaign = small_campaign()
     rig_cfg = RigConfig()
     writer = DatasetWriter(tmp_path / "ds", {})

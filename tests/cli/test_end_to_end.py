@@ -13,6 +13,7 @@ import numpy as np
 
 from rig.data.dataset_format import BRDF_COLUMNS
 from rig.physics.brdf_models import get_model
+from rig.physics.budget import BUDGET_COLUMNS
 from rig.physics.geometry import forward_deg, sph_to_vec
 
 
@@ -102,8 +103,7 @@ def test_cli_entry_point_and_plan(tmp_path, test_campaigns_dir):
 
 def test_budget_components_add_up_to_the_combined_uncertainty(e2e_run):
     rows = read_rows(e2e_run)
-    components = ["u_rel_noise", "u_rel_dark", "u_rel_texture", "u_rel_calibration", "u_rel_illuminance",
-                  "u_rel_drift", "u_rel_angle"]
+    components = list(BUDGET_COLUMNS)
     rss = np.sqrt(sum(column(rows, c) ** 2 for c in components))
     np.testing.assert_allclose(rss, column(rows, "u_brdf_per_sr") / column(rows, "brdf_per_sr"), rtol=0.02)
     budget = json.loads((e2e_run / "dataset.json").read_text())["uncertainty_budget"]

@@ -7,14 +7,14 @@ import yaml
 from repo_paths import E2E_CAMPAIGN, RIGS
 from rig.cli.main import main
 from rig.config.rigdevices import LampDevice
-from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
+from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
 from rig.devices import connect_devices, vendor_camera
 from rig.simulators.clock import SimClock
 
 
 def test_simulated_rig_file_is_the_default():
-    assert load_rig_config(RIGS / "simulated.yaml") == RigConfig()
+    assert load_rig_config(RIGS / "simulated.yaml") == simulated_rig()
 
 
 def test_example_lab_rig_file_loads():

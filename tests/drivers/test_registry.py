@@ -33,7 +33,7 @@ raise_on_import = False
 def test_rigs_own_drivers_are_installed_with_their_roles():
     found = {d.name: d for d in installed_drivers()}
     expected = {"modbus-drive": "positioner", "zaber": "positioner", "delta-sm": "lamp", "p9710": "meter",
-                "lmk": "camera", "genicam": "camera", "rig-sim-camera": "camera"}
+                "lmk": "camera", "genicam": "camera", "rig-sim-camera": "camera", "fw102c": "attenuator"}
     for name, role in expected.items():
         assert found[name].role == role and found[name].problem is None, found[name]
         assert found[name].package.startswith("rig ")

@@ -63,9 +63,10 @@ def test_grazing_views_leave_the_spot(tmp_path):
     assert_all_finite(d)
     order = np.argsort(d["theta_o_deg"])                   # 60°, 80°, 84° whatever the travel order
     assert list(d.has_flag("roi_unlit")[order]) == [False, True, True]
-    # a half-lit ROI reads low: the flag is what keeps it out of fits
+    # a half-lit ROI is not the sample's value (its mean reads low; a lobe fit of the spot's edge does not
+    # rescue it): the flag is what keeps it out of fits
     f = d["brdf_per_sr"][order]
-    assert f[1] < 0.97 * 0.5 / np.pi and f[2] < f[1]
+    assert abs(f[1] / (0.5 / np.pi) - 1) > 0.03 and f[2] < 0.97 * 0.5 / np.pi
 
 
 def test_poles_and_phi_wrap(tmp_path):

@@ -1,0 +1,152 @@
+"""Neutral-density attenuation for points too bright for the camera's shortest exposure.
+
+A point is taken through the clearest filter of the wheel that does not clip its
+ROI: the HDR merge can lengthen exposures for a dark ROI, but cannot shorten them
+below the sensor's minimum, so a glossy peak or a retroreflective sheet seen at
+retroreflection would otherwise come back as a lower bound (`roi_saturated`).
+
+Per point, on the filter the previous point left in the beam:
+1. While a clearer filter exists, one probe frame of the ROI at the exposure that
+   gives, through the present filter, the signal the clearer one would give at the
+   sensor's shortest exposure: if its brightest pixel stays below `CLEARER_HEADROOM`
+   of the usable range, the clearer filter will not clip either: move to it and
+   probe again. This keeps a dense filter from costing long exposures on the dim
+   points after a bright stretch.
+2. The ordinary capture (rig.acquisition.capture). If ROI pixels clipped in every
+   exposure (the ROI merge says so), move to the next denser filter and take the
+   point again.
+A rig without a wheel, and points that never saturate, pay nothing: no probe is
+taken while the clearest filter is in the beam, so the wheel never moves for them.
+
+Darks do not depend on the filter (no light reaches the sensor), so the dark-frame
+cache stays per exposure. The transmission's calibration uncertainty becomes the
+point's `u_rel_attenuation`; the filter is recorded per point (brdf.csv
+`filter_position`, `filter_transmission`) and each move is an event.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from rig.acquisition.calibrated_capture import CalibratedAcquisition
+from rig.acquisition.capture import Acquisition, DarkFrameCache, acquire_point, point_windows, reduce_point
+from rig.config.capture import CaptureSettings
+from rig.config.rigfile import AttenuatorConfig
+from rig.core.errors import DeviceError
+from rig.core.values import PointCapture
+from rig.drivers.interfaces import Attenuator, LuminanceCamera, RigDevices
+from rig.physics.hdr import saturation_threshold_dn
+
+#: A clearer filter is chosen when its predicted ROI peak at the shortest exposure stays below this fraction
+#: of the usable raw range: texture and glints vary from frame to frame and view to view.
+CLEARER_HEADROOM = 0.5
+
+
+@dataclass(frozen=True)
+class Filter:
+    """A wheel position and its calibrated transmission (value, relative standard uncertainty)."""
+
+    position: int
+    transmission: float
+    u_rel: float
+
+
+def attenuated(capture: PointCapture, used: Filter) -> PointCapture:
+    """The capture as if no filter were in the beam: every luminance (each `…_cd_m2` field, the image too)
+    divided by the transmission, whose relative uncertainty joins u_luminance (and is recorded apart)."""
+    t = used.transmission
+    scaled = {f.name: getattr(capture, f.name) / t for f in fields(capture)
+              if f.name.endswith("_cd_m2") and getattr(capture, f.name) is not None}
+    lum = scaled["luminance_cd_m2"]
+    scaled["u_luminance_cd_m2"] = math.hypot(scaled["u_luminance_cd_m2"], used.u_rel * lum)
+    return replace(capture, **scaled, filter_position=used.position, transmission=t, u_rel_attenuation=used.u_rel)
+
+
+class Attenuation:
+    """The filter wheel with its calibrated filters, clearest first; takes each point through the filter
+    it needs (module docstring). `event(kind, **fields)` records each move."""
+
+    def __init__(self, wheel: Attenuator, filters: Sequence[Filter], event: Callable[..., None]):
+        self.wheel = wheel
+        self.filters = sorted(filters, key=lambda f: -f.transmission)
+        self.event = event
+        beyond = [f.position for f in self.filters if f.position > wheel.positions]
+        if beyond:
+            raise DeviceError("attenuator", f"{wheel.identity()} has {wheel.positions} positions; the rig file's "
+                                            f"filters name position(s) {beyond}")
+        self.index = 0
+        self._started = False          # the wheel is put on the clearest filter before the first point
+
+    @property
+    def current(self) -> Filter:
+        return self.filters[self.index]
+
+    def acquire(self, camera: LuminanceCamera, settings: CaptureSettings,
+                take: Callable[[], Acquisition | CalibratedAcquisition]) -> tuple[Acquisition | CalibratedAcquisition,
+                                                                               Filter]:
+        """The point's acquisition (`take()`, the ordinary capture) through the clearest filter that does not
+        clip its ROI, and that filter."""
+        if not self._started:
+            self._move(0, reason="start")
+            self._started = True
+        while self.index > 0 and self._clearer_fits(camera, settings):
+            self._move(self.index - 1, reason="clearer filter suffices")
+        while True:
+            acquisition = take()
+            if not (self.index + 1 < len(self.filters) and _clipped(acquisition)):
+                return acquisition, self.current
+            self._move(self.index + 1, reason="ROI saturated at the shortest exposure")
+
+    def _clearer_fits(self, camera: LuminanceCamera, settings: CaptureSettings) -> bool:
+        sensor = camera.sensor
+        clearer = self.filters[self.index - 1]
+        probe_s = min(sensor.min_exposure_s * clearer.transmission / self.current.transmission, sensor.max_exposure_s)
+        roi, _ = point_windows(camera, settings)
+        frame = camera.capture(probe_s, roi)
+        usable = saturation_threshold_dn(sensor) - sensor.black_level_dn
+        peak = float(np.max(frame.pixels_dn)) - sensor.black_level_dn
+        # the probe's signal scaled to what the clearer filter gives at the shortest exposure
+        scale = (sensor.min_exposure_s * clearer.transmission) / (frame.exposure_s * self.current.transmission)
+        expected = peak * scale
+        return expected < CLEARER_HEADROOM * usable
+
+    def _move(self, index: int, reason: str) -> None:
+        target = self.filters[index]
+        self.wheel.move_to(target.position)
+        self.index = index
+        self.event("filter", device="attenuator", what=reason, position=target.position,
+                   transmission=target.transmission)
+
+
+def _clipped(acquisition: Acquisition | CalibratedAcquisition) -> bool:
+    """Whether ROI pixels saturated in every exposure (their rate is only a lower bound)."""
+    if isinstance(acquisition, CalibratedAcquisition):
+        return False            # a camera that calibrates itself has its own attenuation (the LMK's filters)
+    return bool(np.any(acquisition.roi_merge.clipped))
+
+
+def attenuation_for(devices: RigDevices, filters: AttenuatorConfig | None,
+                    event: Callable[..., None]) -> Attenuation | None:
+    """The run's attenuation: None on a rig without a filter wheel."""
+    if devices.attenuator is None or filters is None:
+        return None
+    return Attenuation(devices.attenuator, [Filter(f.position, f.transmission, f.u_rel) for f in filters.filters],
+                       event)
+
+
+def acquire_through(attenuation: Attenuation | None, camera: LuminanceCamera, settings: CaptureSettings,
+                    darks: DarkFrameCache) -> tuple[Acquisition | CalibratedAcquisition, Filter | None]:
+    """One point's acquisition, through the filter it needs if the rig has a wheel; and that filter."""
+    def take() -> Acquisition | CalibratedAcquisition:
+        return acquire_point(camera, settings, darks)
+    return (take(), None) if attenuation is None else attenuation.acquire(camera, settings, take)
+
+
+def reduce_through(acquisition: Acquisition | CalibratedAcquisition, used: Filter | None) -> PointCapture:
+    """`reduce_point`, then the filter's transmission taken out (`attenuated`)."""
+    capture = reduce_point(acquisition)
+    return capture if used is None else attenuated(capture, used)

@@ -1,0 +1,126 @@
+"""Neutral-density attenuation (rig.acquisition.attenuation) with the simulated camera and a wheel that puts
+its filter into the simulated world: a glossy peak is taken through the clearest filter that does not clip,
+the dim points after it go back to the open position after one probe frame, and the luminance comes out of
+the filter with the transmission's uncertainty in its budget."""
+
+import numpy as np
+import pytest
+
+from rig.acquisition.attenuation import Attenuation, Filter, acquire_through, attenuated, reduce_through
+from rig.acquisition.capture import DarkFrameCache
+from rig.config.campaign import Capture
+from rig.config.rigfile import simulated_rig
+from rig.core.errors import DeviceError
+from rig.drivers.interfaces import Attenuator
+from rig.physics.brdf_models import get_model
+from rig.physics.geometry import AXIS_NAMES, inverse_deg
+from rig.simulators.camera import SimCamera
+from rig.simulators.world import SimWorld
+
+GLOSSY = {"kd": 0.05, "ks": 0.8, "n": 3000.0}         # peak 382 sr⁻¹
+FILTERS = [Filter(f.position, f.transmission, f.u_rel) for f in simulated_rig().attenuator.filters]
+
+
+class WorldWheel(Attenuator):
+    """A filter wheel whose position is the simulated world's (the FW102C peer does the same over its pty)."""
+
+    positions = 6
+
+    def __init__(self, world: SimWorld):
+        self.at = 1
+        self.moves: list[int] = []
+        world.filter_position = lambda: self.at
+
+    def identity(self) -> str:
+        return "test wheel"
+
+    def move_to(self, position: int) -> None:
+        if position != self.at:
+            self.moves.append(position)
+        self.at = position
+
+    def position(self) -> int:
+        return self.at
+
+
+def posed(world: SimWorld, theta_i: float, theta_o: float, phi_o: float) -> None:
+    for name, value in zip(AXIS_NAMES, inverse_deg(theta_i, 0, theta_o, phi_o).as_array()):
+        world.axis_truth[name] = lambda value=float(value): value
+
+
+@pytest.fixture
+def rig():
+    world = SimWorld(simulated_rig(), get_model("modified_phong"), GLOSSY)
+    world.lamp.set_current(world.config.lamp.current_a, 0)
+    world.lamp.switch(True)
+    wheel, events = WorldWheel(world), []
+    attenuation = Attenuation(wheel, FILTERS, lambda kind, **f: events.append((kind, f)))
+    settings = Capture().settings()
+    return world, SimCamera(world), wheel, attenuation, settings, DarkFrameCache(clock=world.clock), events
+
+
+def truth_luminance(world: SimWorld, theta_i: float, theta_o: float, phi_o: float) -> float:
+    wi, wo = (np.array([np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radians(t)) * np.sin(np.radians(p)),
+                        np.cos(np.radians(t))]) for t, p in ((theta_i, 0.0), (theta_o, phi_o)))
+    return float(world.brdf(wi[None], wo[None])[0] * world.illuminance_normal_lx() * np.cos(np.radians(theta_i)))
+
+
+def test_the_peak_is_taken_through_the_clearest_filter_that_does_not_clip(rig):
+    world, camera, wheel, attenuation, settings, darks, events = rig
+    posed(world, 20, 20, 180)                                # the mirror direction: 382 sr⁻¹
+    acquisition, used = acquire_through(attenuation, camera, settings, darks)
+    assert used.position > 1 and wheel.moves == list(range(2, used.position + 1))    # one denser step at a time
+    assert not acquisition.roi_merge.clipped.any()
+    capture = reduce_through(acquisition, used)
+    assert "roi_saturated" not in capture.flags and capture.filter_position == used.position
+    assert capture.u_rel_attenuation == used.u_rel and capture.transmission == used.transmission
+    truth = truth_luminance(world, 20, 20, 180)
+    assert abs(capture.luminance_cd_m2 / truth - 1) < 0.1     # the ROI averages the lobe; ≈ the peak
+    assert [kind for kind, _ in events] == ["filter"] * (1 + len(wheel.moves))
+    assert events[-1][1]["what"] == "ROI saturated at the shortest exposure"
+
+
+def test_without_a_wheel_the_peak_is_a_lower_bound(rig):
+    world, camera, _, _, settings, darks, _ = rig
+    posed(world, 20, 20, 180)
+    acquisition, used = acquire_through(None, camera, settings, darks)
+    capture = reduce_through(acquisition, used)
+    assert used is None and "roi_saturated" in capture.flags and capture.filter_position == 0
+
+
+def test_a_dim_point_after_the_peak_goes_back_to_the_open_position_after_a_probe(rig):
+    world, camera, wheel, attenuation, settings, darks, _ = rig
+    posed(world, 20, 20, 180)
+    acquire_through(attenuation, camera, settings, darks)
+    dense = wheel.at
+    posed(world, 20, 30, 180)                                # off the lobe: the diffuse base, 0.016 sr⁻¹
+    _, used = acquire_through(attenuation, camera, settings, darks)
+    assert used.position == 1 and wheel.moves[-1] == 1 and dense > 1
+
+
+def test_points_that_never_saturate_never_move_the_wheel(rig):
+    world, camera, wheel, attenuation, settings, darks, _ = rig
+    for theta_o in (30, 40, 50):
+        posed(world, 20, theta_o, 180)
+        _, used = acquire_through(attenuation, camera, settings, darks)
+        assert used.position == 1
+    assert wheel.moves == []
+
+
+def test_attenuated_divides_every_luminance_and_adds_the_transmission_uncertainty(rig):
+    world, camera, _, _, settings, darks, _ = rig
+    posed(world, 20, 30, 180)
+    capture = reduce_through(acquire_through(None, camera, settings, darks)[0], None)
+    nd = Filter(3, 0.01, 0.02)
+    out = attenuated(capture, nd)
+    for name in ("luminance_cd_m2", "roi_std_cd_m2", "u_noise_cd_m2", "u_dark_cd_m2", "u_texture_cd_m2"):
+        assert getattr(out, name) == pytest.approx(getattr(capture, name) / 0.01, rel=1e-12)
+    assert out.u_luminance_cd_m2 == pytest.approx(np.hypot(capture.u_luminance_cd_m2 / 0.01,
+                                                           0.02 * out.luminance_cd_m2), rel=1e-12)
+    assert (out.filter_position, out.transmission, out.u_rel_attenuation) == (3, 0.01, 0.02)
+
+
+def test_filters_beyond_the_wheel_are_refused():
+    world = SimWorld(simulated_rig(), get_model("lambert"), {"kd": 0.5})
+    with pytest.raises(DeviceError, match=r"test wheel has 6 positions; the rig file's filters name position"):
+        Attenuation(WorldWheel(world), [*FILTERS[:2], Filter(7, 1e-6, 0.05)], lambda kind, **f: None)
