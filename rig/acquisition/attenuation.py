@@ -18,6 +18,11 @@ Per point, on the filter the previous point left in the beam:
 A rig without a wheel, and points that never saturate, pay nothing: no probe is
 taken while the clearest filter is in the beam, so the wheel never moves for them.
 
+The wheel turns one position per move, the shorter way round: a move blocks the
+link for about a second per position, and the lamp supply's watchdog is fed only
+between blocking calls (rig.core.clock keep-alives), so a long move is a series of
+short ones with the keep-alives run in between.
+
 Darks do not depend on the filter (no light reaches the sensor), so the dark-frame
 cache stays per exposure. The transmission's calibration uncertainty becomes the
 point's `u_rel_attenuation`; the filter is recorded per point (brdf.csv
@@ -36,6 +41,7 @@ from rig.acquisition.calibrated_capture import CalibratedAcquisition
 from rig.acquisition.capture import Acquisition, DarkFrameCache, acquire_point, point_windows, reduce_point
 from rig.config.capture import CaptureSettings
 from rig.config.rigfile import AttenuatorConfig
+from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import PointCapture
 from rig.drivers.interfaces import Attenuator, LuminanceCamera, RigDevices
@@ -70,8 +76,9 @@ class Attenuation:
     """The filter wheel with its calibrated filters, clearest first; takes each point through the filter
     it needs (module docstring). `event(kind, **fields)` records each move."""
 
-    def __init__(self, wheel: Attenuator, filters: Sequence[Filter], event: Callable[..., None]):
+    def __init__(self, wheel: Attenuator, filters: Sequence[Filter], event: Callable[..., None], clock: Clock):
         self.wheel = wheel
+        self.clock = clock
         self.filters = sorted(filters, key=lambda f: -f.transmission)
         self.event = event
         beyond = [f.position for f in self.filters if f.position > wheel.positions]
@@ -80,6 +87,7 @@ class Attenuation:
                                             f"filters name position(s) {beyond}")
         self.index = 0
         self._started = False          # the wheel is put on the clearest filter before the first point
+        self._at: int | None = None    # the wheel's position as rig left it (None: unknown, ask the wheel)
 
     @property
     def current(self) -> Filter:
@@ -116,10 +124,22 @@ class Attenuation:
 
     def _move(self, index: int, reason: str) -> None:
         target = self.filters[index]
-        self.wheel.move_to(target.position)
+        start, self._at = (self.wheel.position() if self._at is None else self._at), None
+        for position in shorter_way(start, target.position, self.wheel.positions):
+            self.wheel.move_to(position)
+            self._at = position
+            self.clock.sleep(0.0)          # between single-position moves: due keep-alives (the lamp's) run
         self.index = index
         self.event("filter", device="attenuator", what=reason, position=target.position,
                    transmission=target.transmission)
+
+
+def shorter_way(start: int, target: int, positions: int) -> list[int]:
+    """The positions a wheel of `positions` passes on its way from `start` to `target` (1-based), one at a
+    time, the shorter way round (forward on a tie), `target` last; empty if it is there."""
+    forward = (target - start) % positions
+    step, count = (1, forward) if forward <= positions - forward else (-1, positions - forward)
+    return [(start - 1 + step * k) % positions + 1 for k in range(1, count + 1)]
 
 
 def _clipped(acquisition: Acquisition | CalibratedAcquisition) -> bool:
@@ -135,7 +155,7 @@ def attenuation_for(devices: RigDevices, filters: AttenuatorConfig | None,
     if devices.attenuator is None or filters is None:
         return None
     return Attenuation(devices.attenuator, [Filter(f.position, f.transmission, f.u_rel) for f in filters.filters],
-                       event)
+                       event, devices.clock)
 
 
 def acquire_through(attenuation: Attenuation | None, camera: LuminanceCamera, settings: CaptureSettings,

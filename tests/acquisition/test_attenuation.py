@@ -6,7 +6,14 @@ the filter with the transmission's uncertainty in its budget."""
 import numpy as np
 import pytest
 
-from rig.acquisition.attenuation import Attenuation, Filter, acquire_through, attenuated, reduce_through
+from rig.acquisition.attenuation import (
+    Attenuation,
+    Filter,
+    acquire_through,
+    attenuated,
+    reduce_through,
+    shorter_way,
+)
 from rig.acquisition.capture import DarkFrameCache
 from rig.config.campaign import Capture
 from rig.config.rigfile import simulated_rig
@@ -27,6 +34,7 @@ class WorldWheel(Attenuator):
     positions = 6
 
     def __init__(self, world: SimWorld):
+        self.world = world
         self.at = 1
         self.moves: list[int] = []
         world.filter_position = lambda: self.at
@@ -37,6 +45,7 @@ class WorldWheel(Attenuator):
     def move_to(self, position: int) -> None:
         if position != self.at:
             self.moves.append(position)
+            self.world.clock.advance(1.0 * abs(position - self.at))      # the wheel's second per position
         self.at = position
 
     def position(self) -> int:
@@ -54,7 +63,7 @@ def rig():
     world.lamp.set_current(world.config.lamp.current_a, 0)
     world.lamp.switch(True)
     wheel, events = WorldWheel(world), []
-    attenuation = Attenuation(wheel, FILTERS, lambda kind, **f: events.append((kind, f)))
+    attenuation = Attenuation(wheel, FILTERS, lambda kind, **f: events.append((kind, f)), world.clock)
     settings = Capture().settings()
     return world, SimCamera(world), wheel, attenuation, settings, DarkFrameCache(clock=world.clock), events
 
@@ -123,4 +132,24 @@ def test_attenuated_divides_every_luminance_and_adds_the_transmission_uncertaint
 def test_filters_beyond_the_wheel_are_refused():
     world = SimWorld(simulated_rig(), get_model("lambert"), {"kd": 0.5})
     with pytest.raises(DeviceError, match=r"test wheel has 6 positions; the rig file's filters name position"):
-        Attenuation(WorldWheel(world), [*FILTERS[:2], Filter(7, 1e-6, 0.05)], lambda kind, **f: None)
+        Attenuation(WorldWheel(world), [*FILTERS[:2], Filter(7, 1e-6, 0.05)], lambda kind, **f: None, world.clock)
+
+
+@pytest.mark.parametrize("start, target, size, path", [
+    (1, 4, 6, [2, 3, 4]), (1, 5, 6, [6, 5]), (6, 1, 6, [1]), (3, 3, 6, []), (2, 11, 12, [1, 12, 11]),
+    (1, 7, 12, [2, 3, 4, 5, 6, 7]),
+])
+def test_the_wheel_turns_one_position_at_a_time_the_shorter_way(start, target, size, path):
+    assert shorter_way(start, target, size) == path
+
+
+def test_keep_alives_run_between_the_single_position_moves():
+    """A far move is a series of one-position moves, each blocking about a second: the lamp's watchdog is fed
+    between them, never starved for the whole way."""
+    world = SimWorld(simulated_rig(), get_model("lambert"), {"kd": 0.5})
+    wheel, fed = WorldWheel(world), []
+    world.clock.keep_alive(0.5, lambda: fed.append(wheel.at))
+    far = [FILTERS[0], Filter(4, 1e-3, 0.015)]
+    attenuation = Attenuation(wheel, far, lambda kind, **f: None, world.clock)
+    attenuation._move(1, reason="test")
+    assert wheel.moves == [2, 3, 4] and fed == [2, 3, 4]
