@@ -90,6 +90,8 @@ def print_devices(devices: RigDevices) -> None:
     s = devices.camera.sensor
     print(f"        camera: {s.width_px}×{s.height_px} px, {s.bit_depth} bit, exposures "
           f"{s.min_exposure_s:g}–{s.max_exposure_s:g} s")
+    if devices.attenuator is not None:
+        print(f"        attenuator: position {devices.attenuator.position()} of {devices.attenuator.positions}")
 
 
 def cmd_devices(args: argparse.Namespace) -> int:

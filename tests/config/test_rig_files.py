@@ -120,6 +120,7 @@ def test_rig_devices_prints_identities_and_moves_nothing(capsys):
     for role in ("arm", "stage", "lamp", "meter", "camera"):
         assert f"\n{role}" in "\n" + out
     assert "DELTA ELEKTRONIKA" in out and "P9710" in out and "Modbus" in out
+    assert "THORLABS FW102C" in out.upper() and "attenuator: position 1 of 6" in out
     assert "output off" in out
 
 
