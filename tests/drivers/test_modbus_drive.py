@@ -9,6 +9,7 @@ TCP and RTU, with every fault, is in test_modbus_drive_integration.py.
 from importlib import resources
 
 import pytest
+from modbus_rtu import crc16_modbus
 
 from rig.core.errors import DeviceError
 from rig.drivers.modbus_drive import ModbusDriveLink, modbus_client
@@ -24,16 +25,6 @@ POSITION_READ = (h("01 03 00 CC 00 02 04 34"), h("01 03 04 00 00 03 E8 FA 8D")) 
 DIRECT_MOVE = (h("01 10 00 58 00 10 20 00000000 00000001 000003E8 000007D0 000005DC 000005DC 000003E8 00000001"
                  " 6D D1"), h("01 10 00 58 00 10 40 16"))   # absolute to 1000 at 2 kHz, 1.5 kHz/s, 100 %, trigger 1
 ILLEGAL_ADDRESS = h("01 83 02 C0 F1")
-
-
-def crc16_modbus(data: bytes) -> bytes:
-    """CRC-16/MODBUS (poly 0xA001 reflected, init 0xFFFF), low byte first."""
-    crc = 0xFFFF
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return crc.to_bytes(2, "little")
 
 
 def pdu(frame: bytes) -> bytes:

@@ -8,6 +8,7 @@ import socket
 import threading
 
 import pytest
+from modbus_rtu import crc16_modbus
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
 from rig.physics.brdf_models import get_model
@@ -68,7 +69,7 @@ def test_unserved_register_is_illegal_address(az):
     """0x0120 (the feedback position of one source, 0x00CC of the others) is not served: exception 02."""
     _, exchange = az
     read_0120 = h("01 03 01 20 00 02")
-    assert exchange(read_0120 + crc(read_0120), 5) == h("01 83 02 C0 F1")
+    assert exchange(read_0120 + crc16_modbus(read_0120), 5) == h("01 83 02 C0 F1")
 
 
 def test_operation_data_table_is_not_modelled(az):
@@ -78,15 +79,6 @@ def test_operation_data_table_is_not_modelled(az):
     assert exchange(h("01 10 18 02 00 02 04 FF FF FC 18 99 58"), 5) == h("01 90 02 CD C1")
 
 
-def crc(data: bytes) -> bytes:
-    value = 0xFFFF
-    for byte in data:
-        value ^= byte
-        for _ in range(8):
-            value = (value >> 1) ^ 0xA001 if value & 1 else value >> 1
-    return value.to_bytes(2, "little")
-
-
 def test_reply_crcs_are_right():
     for frame in (h("01 03 04 00 00 00 20 FB EB"), h("01 83 02 C0 F1"), h("01 90 02 CD C1")):
-        assert crc(frame[:-2]) == frame[-2:]
+        assert crc16_modbus(frame[:-2]) == frame[-2:]
