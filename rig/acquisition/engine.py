@@ -28,6 +28,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from rig.acquisition.alignment import align_run
 from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
 from rig.acquisition.calibrated_capture import point_windows
 from rig.acquisition.capture import DarkFrameCache
@@ -39,14 +40,16 @@ from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
 from rig.acquisition.summary import run_summary
 from rig.acquisition.suspenders import Retake, Suspender, device_silent, install
+from rig.acquisition.warmup import warm_up
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
 from rig.core.errors import DeviceError
-from rig.core.values import IlluminanceReading, Progress, ProgressCallback
+from rig.core.values import IlluminanceReading, PointCapture, Progress, ProgressCallback
 from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
 from rig.physics import geometry as geo
+from rig.physics.budget import lobe_view_u_deg
 from rig.physics.footprint import view_footprint_deg
 from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule, estimate
 from rig.physics.optics import roi_inside_spot
@@ -89,8 +92,9 @@ class Runner:
         self.lamp_ref_v: float | None = None       # lamp voltage when warm: the lamp suspender's reference
         self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait)
         self.eta = Eta(self.rig_time)
-        constants = RowConstants(rig.geometry.angle_u_deg, campaign.limits.grazing_limit_deg,
-                                 devices.camera.sensor.calibration_u_rel)
+        g = rig.geometry
+        constants = RowConstants(g.angle_u_deg, lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg),
+                                 campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel)
         self.ledger = Ledger(writer, done_rows, constants, ill.correction == "interpolate", self.eta, self.rig_time)
         devices.route_events(self._device_event)       # from here on a driver's retry is reported
         self.attenuation = attenuation_for(devices, rig.attenuator, self._device_event)
@@ -98,9 +102,12 @@ class Runner:
         self.eta.plan(point_estimates_s(plan, self.mover.position, rig.axes, NOMINAL_CAPTURE_S), self.done_ids)
 
     # -- helpers -----------------------------------------------------------------------------
+    def _event(self, kind: str, **fields: Any) -> None:
+        self.writer.event(kind, rig_time_s=self.rig_time(), **fields)
+
     def _device_event(self, kind: str, **fields: Any) -> None:
         """A driver's retry or reconnect: into events.jsonl and onto the progress line."""
-        self.writer.event(kind, rig_time_s=self.rig_time(), **fields)
+        self._event(kind, **fields)
         self._report(f"{kind} {fields.get('device', '')}: {fields.get('what', '')}")
 
     def rig_time(self) -> float:
@@ -129,29 +136,8 @@ class Runner:
 
     # -- the lamp and E⊥ ---------------------------------------------------------------------
     def _warm_up(self) -> None:
-        cfg = self.campaign.lamp
-        lamp = self.dev.lamp
-        lamp.set_current(0.0)
-        lamp.set_output(True)
-        lamp.set_current(self.rig.lamp.current_a, ramp_s=self.rig.lamp.ramp_s)
-        start = self.rig_time()
-        self.writer.event("lamp_on", current_a=lamp.measure_current_a(), voltage_v=lamp.measure_voltage_v(),
-                          rig_time_s=start)
-        self._report("lamp warm-up")
-        self._wait(cfg.warmup_min_s)
-        previous = self.dev.meter.read().illuminance_lx
-        while True:
-            self._wait(cfg.warmup_check_s)
-            now = self.dev.meter.read().illuminance_lx
-            change = abs(now - previous) / max(abs(now), 1e-300)
-            elapsed = self.rig_time() - start
-            if change < cfg.warmup_stable_rel or elapsed >= cfg.warmup_max_s:
-                break
-            previous = now
-        self.lamp_ref_v = lamp.measure_voltage_v()
-        self.writer.event("warmup_stable" if change < cfg.warmup_stable_rel else "warmup_not_stable",
-                          illuminance_lx=now, change_rel=change, warmup_s=elapsed, lamp_voltage_v=self.lamp_ref_v,
-                          rig_time_s=self.rig_time())
+        self.lamp_ref_v = warm_up(self.campaign.lamp, self.rig, self.dev, self._wait, self.rig_time, self._event,
+                                  self._report)
 
     def _read_illuminance(self, *, pause: bool = True) -> IlluminanceEstimate:
         """E⊥ from `illuminance.readings` meter readings; a meter that stops answering pauses the
@@ -240,6 +226,19 @@ class Runner:
                 if not exc.unanswered:
                     raise
                 self._suspend(device_silent(self.dev, exc.device), str(exc))
+
+    def _align(self) -> None:
+        """Campaign `alignment`: the arm aligned on the sample's specular peak (rig.acquisition.alignment)."""
+        if (spec := self.campaign.alignment) is not None:
+            self._report("aligning the arm on the specular peak")
+            found = align_run(spec, self.writer.manifest, self.mover, self._capture, self._event,
+                              self.writer.update_manifest)
+            g = self.rig.geometry
+            u_view = lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg, found.u_deg)
+            self.ledger.constants = replace(self.ledger.constants, lobe_view_u_deg=u_view)
+
+    def _capture(self) -> PointCapture:
+        return reduce_through(*acquire_through(self.attenuation, self.dev.camera, self.settings, self.darks))
 
     # -- one point ---------------------------------------------------------------------------
     def _take_point(self, point: PlannedPoint, next_point: PlannedPoint | None) -> list[PlannedPoint]:
@@ -362,6 +361,7 @@ class Runner:
                 self.writer.event("devices", identities=ids, simulated=self.dev.simulated)
                 self.writer.update_manifest(rig={**self.writer.manifest.get("rig", {}), "identities": ids})
                 self._warm_up()
+                self._align()
                 self._measure_all()
                 ending = ending_of(None)
             except StopRequested as stop:

@@ -4,6 +4,10 @@ Motor positions are (stage_vertical, stage_normal, arm_azimuth, arm_polar) in de
 order of the plan and of brdf.csv. Both positioners start before either is waited for, so
 the four axes run at once; a move may be started and waited for later (the engine starts
 the move to the next point before merging the frames of this one).
+
+After an alignment (rig.acquisition.alignment) the arm's positions are relative to the
+aligned zero: the engine's targets and read-backs are the aligned ones, and only the arm's
+commands and encoder readings carry the offset.
 """
 
 from __future__ import annotations
@@ -32,13 +36,20 @@ class Mover:
     def __init__(self, devices: RigDevices, rig: RigConfig):
         self.dev = devices
         self.rig = rig
+        #: Encoder readings (arm azimuth, arm polar) at the aligned zero; (0, 0) until aligned.
+        self.arm_zero_deg: tuple[float, float] = (0.0, 0.0)
         self.position: Motors = self.read_back()
         self.moving_to: Motors | None = None     # target of a move started and not yet waited for
 
     def read_back(self) -> Motors:
-        """The encoders' positions, the values the dataset records."""
+        """The encoders' positions (the arm's relative to its aligned zero), the values the dataset records."""
         stage, arm = self.dev.stage.positions_deg(), self.dev.arm.positions_deg()
-        return stage[0], stage[1], arm[0], arm[1]
+        return stage[0], stage[1], arm[0] - self.arm_zero_deg[0], arm[1] - self.arm_zero_deg[1]
+
+    def align(self, arm_zero_deg: tuple[float, float]) -> None:
+        """From now on the arm's positions are relative to `arm_zero_deg` (encoder readings)."""
+        self.arm_zero_deg = arm_zero_deg
+        self.resync()
 
     def resync(self) -> None:
         """Take the read-back as the position (after a device error left it unknown)."""
@@ -56,7 +67,7 @@ class Mover:
         if zone is not None:
             raise CollisionError(f"move from {self.position} to {target} (deg) would cross forbidden zone {zone!r}")
         self.dev.stage.start_move(target[0], target[1])
-        self.dev.arm.start_move(target[2], target[3])
+        self.dev.arm.start_move(target[2] + self.arm_zero_deg[0], target[3] + self.arm_zero_deg[1])
         self.moving_to = target
 
     def move(self, target: Motors) -> None:

@@ -42,6 +42,7 @@ class RowConstants:
     """What a row needs besides the measurement and its E⊥: fixed for a run."""
 
     angle_u_deg: float            # standard uncertainty of the incidence angle
+    lobe_view_u_deg: float        # ... of the view direction relative to a specular lobe (budget.lobe_view_u_deg)
     grazing_limit_deg: float      # θi from which a point is flagged grazing_incidence
     calibration_u_rel: float      # relative uncertainty of the camera's luminance calibration
 
@@ -50,7 +51,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
              constants: RowConstants) -> dict[str, Any]:
     """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
-    u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.angle_u_deg)
+    u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
     u_luminance = float(np.hypot(cap.u_luminance_cd_m2, u_angle_lobe * cap.luminance_cd_m2))
     res = brdf_from_luminance(cap.luminance_cd_m2, u_luminance, e_perp_lx, u_e_perp_lx,
                               theta_i, constants.angle_u_deg, grazing_limit_deg=constants.grazing_limit_deg)

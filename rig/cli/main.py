@@ -35,6 +35,9 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     print(f"campaign {campaign.name}: {len(plan.series)} incidence series, {plan.n_planned} planned points")
     print(f"  to measure: {len(plan.points)}")
     print(f"  skipped:    {len(plan.skipped)}")
+    if (a := campaign.alignment) is not None:
+        print(f"  first: align the arm on the specular peak at θi={a.theta_i_deg:g}° ({a.steps}×{a.steps} scan, "
+              f"step {a.step_deg:g}°)")
     for reason, n in sorted(plan.skipped_by_reason().items(), key=lambda kv: -kv[1]):
         print(f"    {n:6d}  {reason}: {describe_reason(reason)}")
     print("  per series (θi, φi): measured / planned")

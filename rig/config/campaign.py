@@ -221,6 +221,29 @@ class Limits(StrictModel):
     skip_roi_unlit: bool = True
 
 
+class SpecularAlignment(StrictModel):
+    """Before the first point, align the arm's zeros on the sample's own specular peak (a glossy sample:
+    a gloss standard, a car paint): at incidence `theta_i_deg` the arm scans a `steps` × `steps` grid of
+    `step_deg` around the nominal mirror direction, a quadratic in the log of the ROI luminance locates
+    the peak (rig.physics.peak_fit), and every later arm move is corrected by the peak's offset. This
+    removes the arm's zero error relative to the mounted sample's normal, which on a steep lobe is the
+    largest error of a point (rig.acquisition.alignment)."""
+
+    theta_i_deg: float = Field(45.0, ge=5.0, le=80.0)
+    step_deg: float = Field(0.2, gt=0.0, le=2.0)
+    steps: int = Field(5, ge=3, le=9)
+    #: The largest offset the alignment may apply; beyond it the run stops (the sample is not mounted
+    #: as the rig expects, or the peak found is not the specular one).
+    max_offset_deg: float = Field(0.5, gt=0.0, le=5.0)
+
+    @field_validator("steps")
+    @classmethod
+    def _odd(cls, v: int) -> int:
+        if v % 2 == 0:
+            raise ValueError("must be odd (the grid is centred on the nominal mirror direction)")
+        return v
+
+
 class Campaign(StrictModel):
     name: Name
     sample: Sample
@@ -235,6 +258,8 @@ class Campaign(StrictModel):
     #: `optimised`: series and views ordered for the least rig time (travel-time heuristic);
     #: `table`: the order of the file. Point ids are the same either way.
     ordering: Literal["optimised", "table"] = "optimised"
+    #: Align the arm on the sample's specular peak before measuring (glossy samples only).
+    alignment: SpecularAlignment | None = None
 
     @model_validator(mode="after")
     def _bounded_size(self):

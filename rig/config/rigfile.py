@@ -75,8 +75,19 @@ class GeometryConfig(StrictModel):
     camera_distance_m: Metres = 1.54
     lamp_housing_radius_m: float = Field(0.04, ge=0, le=10)
     spot_diameter_m: Metres = 0.075
-    #: Standard uncertainty of every axis position (positioning + read-back).
+    #: Standard uncertainty of every axis position (zero, positioning and read-back together).
     angle_u_deg: float = Field(0.01, ge=0, le=10)
+    #: The part of `angle_u_deg` that differs from one position to the next on the same axis (encoder
+    #: resolution and interpolation error): what is left once a campaign's `alignment` has measured the
+    #: fixed zero errors (rig.physics.budget.lobe_view_u_deg).
+    readback_u_deg: float = Field(0.002, ge=0, le=10)
+
+    @model_validator(mode="after")
+    def _readback_within_angle_u(self):
+        if self.readback_u_deg > self.angle_u_deg:
+            raise ValueError(f"readback_u_deg {self.readback_u_deg:g} exceeds angle_u_deg {self.angle_u_deg:g}, "
+                             "of which it is a part")
+        return self
 
 
 class CameraConfig(StrictModel):

@@ -35,13 +35,27 @@ BUDGET_COLUMNS = {
 LOBE_ANGLE_GAIN = math.sqrt(5.0)
 
 
-def lobe_angle_u_rel(slope_rel: float, footprint_deg: float, angle_u_deg: float) -> float:
+def lobe_view_u_deg(angle_u_deg: float, readback_u_deg: float, alignment_u_deg: float | None = None) -> float:
+    """Standard uncertainty (degrees) of the view direction relative to a specular lobe's axis.
+
+    Unaligned, the four axes' position errors (`angle_u_deg` each) add up as LOBE_ANGLE_GAIN says.
+    Aligned on the sample's specular peak (rig.acquisition.alignment), their fixed parts (zeros, the
+    sample's mounting tilt) are measured, to the alignment's own uncertainty, which already holds all
+    axes; what varies from point to point is the axes' read-back (`readback_u_deg` each), combined alike.
+    """
+    if alignment_u_deg is None:
+        return angle_u_deg * LOBE_ANGLE_GAIN
+    return math.hypot(alignment_u_deg, readback_u_deg * LOBE_ANGLE_GAIN)
+
+
+def lobe_angle_u_rel(slope_rel: float, footprint_deg: float, view_u_deg: float) -> float:
     """Relative u of a point on a steep lobe from the axes' angle errors: the lobe's log-slope measured over
-    the ROI (per footprint, rig.physics.footprint) per degree, times the view direction's uncertainty.
-    0 without a measured slope or footprint (a flat or diffuse ROI: the fit resolves no lobe)."""
+    the ROI (per footprint, rig.physics.footprint) per degree, times the view direction's uncertainty
+    relative to the lobe (`lobe_view_u_deg`). 0 without a measured slope or footprint (a flat or diffuse
+    ROI: the fit resolves no lobe)."""
     if footprint_deg <= 0:
         return 0.0
-    return slope_rel / footprint_deg * angle_u_deg * LOBE_ANGLE_GAIN
+    return slope_rel / footprint_deg * view_u_deg
 
 
 def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd_m2: float, u_dark_cd_m2: float,

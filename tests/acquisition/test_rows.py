@@ -8,7 +8,7 @@ import pytest
 from rig.acquisition.capture import PointCapture
 from rig.acquisition.rows import Measurement, RowConstants, bracketed_rows, brdf_row
 from rig.core.values import Window
-from rig.physics.budget import BUDGET_COLUMNS
+from rig.physics.budget import BUDGET_COLUMNS, lobe_view_u_deg
 from rig.physics.geometry import BrdfAngles
 from rig.physics.illuminance import IlluminanceEstimate
 from rig.planning.points import PlannedPoint
@@ -18,7 +18,8 @@ THETA_I_DEG = 60.0
 E_PERP_LX = 1000.0
 #: A Lambertian sample lit at θi: L = kd/π · E⊥ cos θi, so f = L / (E⊥ cos θi) = kd/π.
 LUMINANCE = KD / math.pi * E_PERP_LX * math.cos(math.radians(THETA_I_DEG))
-CONSTANTS = RowConstants(angle_u_deg=0.1, grazing_limit_deg=88.0, calibration_u_rel=0.03)
+CONSTANTS = RowConstants(angle_u_deg=0.1, lobe_view_u_deg=lobe_view_u_deg(0.1, 0.01), grazing_limit_deg=88.0,
+                         calibration_u_rel=0.03)
 
 
 def measurement(rig_time_s: float = 5.0) -> Measurement:

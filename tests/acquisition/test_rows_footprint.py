@@ -10,13 +10,14 @@ from rig.acquisition.capture import PointCapture
 from rig.acquisition.rows import Measurement, RowConstants, brdf_row
 from rig.core.values import Window
 from rig.data.dataset_format import BRDF_COLUMNS, UNITS
-from rig.physics.budget import BUDGET_COLUMNS, LOBE_ANGLE_GAIN
+from rig.physics.budget import BUDGET_COLUMNS, LOBE_ANGLE_GAIN, lobe_view_u_deg
 from rig.physics.geometry import BrdfAngles
 from rig.planning.points import PlannedPoint
 
 E_PERP_LX = 1000.0
 LUMINANCE = 300.0
-CONSTANTS = RowConstants(angle_u_deg=0.1, grazing_limit_deg=88.0, calibration_u_rel=0.02)
+CONSTANTS = RowConstants(angle_u_deg=0.1, lobe_view_u_deg=lobe_view_u_deg(0.1, 0.01), grazing_limit_deg=88.0,
+                         calibration_u_rel=0.02)
 #: Camera parts of a glossy point's ROI, relative: noise (of which dark), texture, lobe correction.
 NOISE, DARK, TEXTURE, LOBE = 0.004, 0.002, 0.003, 0.005
 #: ln f changes by 0.4 across the footprint's half-angle on this flank.

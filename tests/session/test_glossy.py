@@ -3,9 +3,10 @@ n = 3000, peak 382 sr⁻¹) at three incidences, a mirror-like one (n = 30000, l
 angular footprint) and a near-black diffuse sample (kd = 0.01).
 
 The glossy sample saturates the camera at its shortest exposure over a wide part of its lobe: without the
-wheel about half its points are lower bounds; with it none is, the values are accurate to about 1 % (the
-rest is the axes' zero errors through the lobe's slope, which the budget covers: benchmarks/glossy.py) and
-k = 2 coverage holds, pooled over independent simulated rigs (seeds) because the axis errors are shared.
+wheel about half its points are lower bounds; with it none is. Its campaign aligns the arm on the sample's
+specular peak first (without it the axes' zero errors, through the lobe's slope, leave the median error at
+about 1 %: benchmarks/glossy.py); then the median error is below 1 % and k = 2 coverage holds, pooled over
+independent simulated rigs (seeds) because the axis errors are shared by a run's points.
 """
 
 import csv
@@ -61,15 +62,16 @@ def test_glossy_lobe_through_the_wheel_has_no_lower_bound_and_honest_uncertainty
     assert {int(r["filter_position"]) for r in rows} >= {1, 2, 3}          # open on the base, ND 1–2 on the lobe
     assert all(float(r["u_rel_attenuation"]) > 0 for r in rows if int(r["filter_position"]) > 1)
     rel, z = np.abs(f / truth - 1), (f - truth) / u
-    assert np.median(rel) <= 0.012, f"median |relative error| {np.median(rel):.4f}"
-    assert 0.92 <= np.mean(np.abs(z) <= 2) <= 0.99, f"k=2 coverage {np.mean(np.abs(z) <= 2):.3f}"
+    assert np.median(rel) <= 0.01, f"median |relative error| {np.median(rel):.4f}"
+    assert 0.93 <= np.mean(np.abs(z) <= 2) <= 0.97, f"k=2 coverage {np.mean(np.abs(z) <= 2):.3f}"
     flank = (truth > 1.0) & (truth < 300.0)                                 # on the lobe, off its peak
     assert flank.sum() > 100 and np.mean(np.abs(z[flank]) <= 2) >= 0.9
     assert any(float(r["lobe_bias_rel"]) != 0 for r in rows)                # the footprint is accounted for
 
 
 def test_without_the_wheel_the_glossy_peak_is_a_lower_bound(tmp_path):
-    _, _, _, rows = measured(tmp_path, GLOSSY, RigConfig(), SEEDS[0])
+    unaligned = GLOSSY.model_copy(update={"alignment": None})         # its scan would saturate the camera
+    _, _, _, rows = measured(tmp_path, unaligned, RigConfig(), SEEDS[0])
     saturated = [r for r in rows if "roi_saturated" in r["flags"]]
     assert len(saturated) > len(rows) // 4 and all(int(r["filter_position"]) == 0 for r in rows)
 
@@ -81,7 +83,9 @@ def test_a_mirror_like_lobe_is_flagged_narrower_than_the_footprint(tmp_path):
     assert max(int(r["filter_position"]) for r in rows) >= 3
     narrow = ["narrow_lobe" in r["flags"] for r in rows]
     assert any(narrow)
-    manifest = json.loads((tmp_path / f"modified_phong-{SEEDS[0]}" / "dataset.json").read_text())["footprint"]
+    dataset = json.loads((tmp_path / f"modified_phong-{SEEDS[0]}" / "dataset.json").read_text())
+    assert dataset["alignment"]["lobe_width_deg"] < 0.5                     # aligned on its own narrow peak
+    manifest = dataset["footprint"]
     assert manifest["narrow_lobe_points"] == sum(narrow) and manifest["view_half_angle_deg"] > 0.3
     peak = np.argmax(truth)
     assert narrow[peak] and abs(f[peak] / truth[peak] - 1) <= 2 * u[peak] / truth[peak] + 0.05
