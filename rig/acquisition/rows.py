@@ -3,13 +3,13 @@
 A point is measured before the E⊥ reading that closes its interval is taken, so the
 engine keeps a `Measurement` and turns it into a row once it knows which E⊥ the point
 gets: the last reading alone, or one interpolated between the readings that bracket it
-(`drift_corrected`).
+(column `illuminance_interpolated` = 1).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -48,8 +48,10 @@ class RowConstants:
 
 
 def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float,
-             constants: RowConstants) -> dict[str, Any]:
-    """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift)."""
+             constants: RowConstants, *, interpolated: bool = False) -> dict[str, Any]:
+    """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift);
+    `interpolated`: that E⊥ was interpolated between bracketing readings (a column, not a flag: it is
+    the routine correction of `illuminance.correction: interpolate`, not a condition worth a look)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
     u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
     u_luminance = float(np.hypot(cap.u_luminance_cd_m2, u_angle_lobe * cap.luminance_cd_m2))
@@ -80,6 +82,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
         "filter_position": cap.filter_position, "filter_transmission": cap.transmission,
         "footprint_deg": m.footprint_deg, "lobe_bias_rel": cap.lobe_bias_rel,
         "lobe_width_deg": cap.lobe_width_rel * m.footprint_deg, **budget,
+        "illuminance_interpolated": int(interpolated),
     }
 
 
@@ -91,10 +94,10 @@ def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConst
 def bracketed_rows(measurements: Sequence[Measurement], before: IlluminanceEstimate,
                    after: IlluminanceEstimate | None, constants: RowConstants) -> list[dict[str, Any]]:
     """Rows of the points measured between two readings, E⊥ interpolated in rig time between them
-    (flag `drift_corrected`); without `after` (no closing reading) each keeps `before`'s E⊥."""
+    (`illuminance_interpolated` = 1); without `after` (no closing reading) each keeps `before`'s E⊥."""
     if after is None:
         return [latest_row(m, before, constants) for m in measurements]
     e = interpolate(before, after, np.array([m.rig_time_s for m in measurements]))
-    return [brdf_row(replace(m, flags=m.flags + ("drift_corrected",)),
-                     float(e.value_lx[k]), float(e.u_lx[k]), float(e.u_drift_lx[k]), constants)
+    return [brdf_row(m, float(e.value_lx[k]), float(e.u_lx[k]), float(e.u_drift_lx[k]), constants,
+                     interpolated=True)
             for k, m in enumerate(measurements)]

@@ -18,7 +18,7 @@ their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
   residuals' MAD, so outliers (glints, dust) cost linearly while the noise keeps its
   quadratic cost; a blind zone around retroreflection needs nothing special: the lobe's
   shoulders carry its width and height;
-* standard errors come from the Jacobian at the optimum through the delta method, scaled
+* the covariance and standard errors come from the Jacobian at the optimum through the delta method, scaled
   by the residual variance (unweighted), the MAD² (robust) or max(1, χ²/dof) (weighted);
   directions the data do not constrain (a null space of the Jacobian) give `inf`, never NaN;
 * RMSE, NRMSE and NCC are always computed on the unweighted values (rig.analysis.metrics).
@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
 from rig.analysis.metrics import goodness_of_fit
+from rig.data.dataset_format import usable_u
 from rig.data.dataset_reader import Dataset
 from rig.physics.brdf_models import BrdfModel, get_model
 
@@ -119,6 +120,8 @@ class FitResult:
     model: str
     params: dict[str, float]
     stderr: dict[str, float]          # inf where the data do not determine the parameter; 0 when fixed
+    #: Of the free parameters (fixed ones are left out), in their units; inf where undetermined.
+    covariance: dict[str, dict[str, float]]
     metrics: dict[str, float]         # rmse, nrmse, ncc (Eqs. 16, 19, 20), unweighted
     chi2_dof: float | None            # weighted fits only
     n_points: int
@@ -141,6 +144,7 @@ class FitResult:
             "model": self.model,
             "params": self.params,
             "stderr": {k: _finite_or_none(v) for k, v in self.stderr.items()},
+            "covariance": {p: {q: _finite_or_none(v) for q, v in row.items()} for p, row in self.covariance.items()},
             "metrics": {k: _finite_or_none(v) for k, v in self.metrics.items()},
             "diagnostics": {
                 "n_points": self.n_points, "weighting": self.weighting, "loss": self.loss,
@@ -185,18 +189,19 @@ def _starts(best: np.ndarray, typ: np.ndarray, ranked: np.ndarray, n: int) -> li
     return chosen
 
 
-def _stderr(jac: np.ndarray, variance: float) -> tuple[np.ndarray, np.ndarray]:
-    """Standard errors in unit-cube coordinates and the mask of undetermined parameters.
+def _covariance(jac: np.ndarray, variance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance in unit-cube coordinates and the mask of undetermined parameters.
 
     Covariance variance·(JᵀJ)⁺ restricted to the directions the data constrain; a
-    parameter with weight in an unconstrained direction gets inf.
+    parameter with weight in an unconstrained direction gets inf in its row and column.
     """
     _, sv, vt = np.linalg.svd(jac, full_matrices=False)
     ok = sv > RCOND * sv[0] if sv[0] > 0 else np.zeros_like(sv, bool)
     undetermined = np.any(np.abs(vt[~ok]) > NULL_WEIGHT, axis=0)
     cov = (vt[ok].T / sv[ok] ** 2) @ vt[ok] * variance
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    return np.where(undetermined, np.inf, se), undetermined
+    cov[undetermined, :] = np.inf
+    cov[:, undetermined] = np.inf
+    return cov, undetermined
 
 
 def _check_inputs(wi, wo, f, u, weighting: str, loss: str) -> tuple[np.ndarray, ...]:
@@ -278,14 +283,19 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
     variance = float(np.sum(r ** 2) / dof) if loss == "linear" else mad_scale(r) ** 2
     if weighting == "uncertainty":
         variance = max(variance, 1.0)       # u are standard uncertainties: inflate only, by the Birge ratio
-    se_x, undetermined = _stderr(final.jac, variance)
-    se = se_x * np.abs(space.jacobian_diag(x))
+    cov_x, undetermined = _covariance(final.jac, variance)
+    scale_p = space.jacobian_diag(x)
+    with np.errstate(invalid="ignore"):          # inf · 0 off the diagonal of an undetermined parameter
+        cov_p = np.where(np.isinf(cov_x), np.inf, cov_x * np.outer(scale_p, scale_p))
+    se = np.sqrt(np.maximum(np.diag(cov_p), 0.0))
     params = space.params(x)
     with np.errstate(all="ignore"):
         fr = model.evaluate(wi, wo, **params)
     stderr = {p: float(se[space.free.index(p)]) if p in space.free else 0.0 for p in model.param_names}
+    covariance = {p: {q: float(cov_p[space.free.index(p), space.free.index(q)]) for q in space.free}
+                  for p in space.free}
     return FitResult(
-        model=model.name, params={p: params[p] for p in model.param_names}, stderr=stderr,
+        model=model.name, params={p: params[p] for p in model.param_names}, stderr=stderr, covariance=covariance,
         metrics=goodness_of_fit(f, fr), chi2_dof=chi2_dof, n_points=n, n_starts=len(runs),
         n_starts_at_best=at_best, converged=bool(final.status > 0), message=final.message, nfev=nfev,
         wall_s=time.perf_counter() - t0, weighting=weighting, loss=loss,
@@ -298,13 +308,6 @@ def usable_rows(dataset: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAG
     """Mask of rows carrying none of `exclude_flags`."""
     bad = set(exclude_flags)
     return np.array([not bad.intersection(flags) for flags in dataset.flags], bool)
-
-
-def usable_u(u: np.ndarray) -> np.ndarray:
-    """Rows whose u can weight a fit: finite and > 0 (an import without #VS writes 0, flag no_uncertainty)."""
-    u = np.asarray(u, float)
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(u) & (u > 0)
 
 
 def choose_weighting(u: np.ndarray, point_ids: list[str], requested: str | None) -> tuple[str, str | None]:

@@ -31,7 +31,6 @@ from matplotlib.ticker import MaxNLocator
 
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
-from rig.data.export import series_incidence_deg
 from rig.data.output_folder import removed_on_failure, require_new_output
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import mirror_direction, sph_to_vec
@@ -127,7 +126,7 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
 def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
                tol_deg: float = PLANE_TOL_DEG) -> Path:
     """Plane-of-incidence figure of one series (module docstring)."""
-    theta_i, phi_i = series_incidence_deg(ds, series)
+    theta_i, phi_i = ds.series_incidence_deg(series)
     t, n = plane_axes(theta_i, phi_i)
     rows = ds["series"] == series
     _, wo = ds.directions()
@@ -156,7 +155,7 @@ def _hemisphere_surface(model: Model, wi: np.ndarray) -> np.ndarray:
 
 def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -> Path:
     """3D lobe of one series: measured f_r·ωo, incident vector, fitted surface (module docstring)."""
-    theta_i, phi_i = series_incidence_deg(ds, series)
+    theta_i, phi_i = ds.series_incidence_deg(series)
     rows = ds["series"] == series
     _, wo = ds.directions()
     f = ds["brdf_per_sr"][rows]
@@ -210,7 +209,7 @@ def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
     ax_fit, ax_res = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     for s in np.unique(ds["series"]).astype(int):
         rows = ds["series"] == s
-        label = _series_label(*series_incidence_deg(ds, s))
+        label = _series_label(*ds.series_incidence_deg(s))
         ax_fit.errorbar(f[rows], f_fit[rows], xerr=u[rows], fmt="o", ms=4, capsize=2, label=label)
         ax_res.errorbar(ds["theta_o_deg"][rows], 100 * (f[rows] - f_fit[rows]) / f_fit[rows],
                         yerr=100 * u[rows] / f_fit[rows], fmt="o", ms=4, capsize=2, label=label)
@@ -252,7 +251,7 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
     with removed_on_failure(out_dir):
         out_dir.mkdir(parents=True, exist_ok=True)
         for s in np.unique(ds["series"]).astype(int):
-            theta_i = series_incidence_deg(ds, s)[0]
+            theta_i = ds.series_incidence_deg(s)[0]
             stem = f"s{s:02d}_ti{theta_i:02.0f}"
             paths.append(plot_plane(ds, s, out_dir / f"plane_{stem}.png", model, plane_tol_deg))
             paths.append(plot_lobe(ds, s, out_dir / f"lobe_{stem}.png", model))

@@ -21,9 +21,12 @@ def cmd_import(args: argparse.Namespace) -> int:
         return fail(str(exc))
     except OSError as exc:
         return fail(f"{exc.filename}: {exc.strerror}")
-    counts = json.loads((out / "dataset.json").read_text(encoding="utf-8"))["counts"]
+    manifest = json.loads((out / "dataset.json").read_text(encoding="utf-8"))
+    counts = manifest["counts"]
     print(f"imported {args.alta_file} → {out}: {counts['measured']} points, {counts['skipped']} skipped "
           "(reasons in skipped.csv)", file=sys.stderr)
+    for note in manifest["provenance"]["conversion"]:      # the uncertainty's k, #KEY lines skipped, ...
+        print(f"  {note}", file=sys.stderr)
     return EXIT_OK
 
 

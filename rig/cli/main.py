@@ -14,7 +14,7 @@ from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.acquisition.execute import RunOutcome, execute, manifest_for
 from rig.acquisition.progress import ProgressBar, format_duration
 from rig.acquisition.resume import prepare_resume
-from rig.cli import bench, calibrate, export, fit, import_alta, plot, sim
+from rig.cli import bench, calibrate, export, fit, import_alta, plot, predict, sim
 from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
@@ -217,7 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev.add_argument("--list", action="store_true",
                        help="list every installed driver (entry-point group rig.drivers): name, role, class, package")
     p_dev.set_defaults(func=cmd_devices)
-    for module in (fit, import_alta, export, plot, bench, sim, calibrate):
+    for module in (fit, import_alta, export, predict, plot, bench, sim, calibrate):
         module.add_subcommand(sub)
     return parser
 

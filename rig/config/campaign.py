@@ -168,7 +168,7 @@ class Illuminance(StrictModel):
 
     remeasure: `per_series` (at each series start), `every_n_points` or `every_minutes`
     (with `every`); correction: `interpolate` (E⊥ interpolated in rig time between the
-    bracketing readings, flag `drift_corrected`) or `latest` (the last reading).
+    bracketing readings, column `illuminance_interpolated`) or `latest` (the last reading).
     """
 
     readings: int = Field(5, ge=1, le=1000)

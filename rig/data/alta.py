@@ -3,8 +3,22 @@
 Format (the ALTA library's text format, github.com/belcour/alta): header lines `#KEY value` (`#DIM N P`,
 `#PARAM_IN`, `#PARAM_OUT`, `#VS 0|1|2`, free keys such as `#SAMPLE`), comment
 lines `# text`, then one whitespace-separated row per sample: N inputs, P
-outputs, then 0, 1 (± half-width) or 2 (lower, upper bound) confidence columns
-for the first output only. Angles are radians.
+outputs, then the vertical segment of the first output only. Angles are radians.
+
+Vertical segments (`#VS`), as ALTA's loader reads them (sources/core/data_storage.cpp,
+`read_confidence_interval`, since ALTA commit 302c046 of 2017-07-25; docs/alta.md):
+- `#VS 0`: no column; ALTA then gives every point the segment [y − dt, y + dt] of
+  its `--dt` option (default 0.1, absolute).
+- `#VS 1`: one column d, the segment [y − d, y + d].
+- `#VS 2`: two columns d₋ d₊, distances below and above y: the segment
+  [y − d₋, y + d₊] (before that commit ALTA read them as absolute bounds; we
+  follow the current loader).
+ALTA's fitters take the segment as a hard bound on the fitted function, so its
+half-width is a coverage interval k·u, not a standard uncertainty. rig writes the
+k it used in the comment line `# rig coverage_k=<k>: ...` (`coverage_comment`);
+reading, u = half-width / k with that k, else with k = 1 (said in the notes).
+A `#KEY` line after the first data row is skipped, as ALTA's loader skips every
+`#` line there, and a note names it.
 
 Conventions of the conversion to rig angles (docs/geometry.md):
 - `SPHERICAL_TL_PL_TV_PV` = [θL, φL, θV, φV]: the light is our incident direction
@@ -29,6 +43,7 @@ Conventions of the conversion to rig angles (docs/geometry.md):
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,13 +78,27 @@ CONVERSION_SKIP_REASONS = {
 }
 
 
+#: The comment by which rig states the coverage factor of the segment columns (`coverage_comment`).
+COVERAGE_COMMENT = re.compile(r"rig coverage_k=(\S+?):")
+
+
+def coverage_comment(coverage_k: float) -> str:
+    """The comment line (without `# `) that states the k of the segment columns; `read_alta` finds it."""
+    return (f"rig coverage_k={coverage_k!r}: the vertical segment of f is ±{coverage_k:g}·u(f), "
+            "u the standard uncertainty (ALTA's fitters take it as a hard bound)")
+
+
 class AltaError(ValueError):
     """A malformed or unsupported ALTA file; the message names the file (and line)."""
 
 
 @dataclass(frozen=True)
 class AltaData:
-    """An ALTA text file in memory; `x` inputs (M, N), `y` outputs (M, P), `ci` confidence columns (M, VS)."""
+    """An ALTA text file in memory; `x` inputs (M, N), `y` outputs (M, P), `ci` segment columns (M, VS).
+
+    `coverage_k`: the k of a rig coverage comment, None without one. `notes`: what the reader
+    tolerated (e.g. a `#KEY` line after the data, skipped).
+    """
 
     path: Path
     header: dict[str, str]
@@ -83,6 +112,8 @@ class AltaData:
     y: np.ndarray
     ci: np.ndarray
     line: np.ndarray          # source line number (1-based) of each row
+    coverage_k: float | None = None
+    notes: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.x)
@@ -147,11 +178,27 @@ def _check_header(path: Path, header: Mapping[str, str], header_line: Mapping[st
     return n_in, n_out, vs
 
 
+def _coverage_k(path: Path, comments: Iterable[str]) -> float | None:
+    """The k of the first rig coverage comment; AltaError if it is not a positive finite number."""
+    for comment in comments:
+        match = COVERAGE_COMMENT.match(comment)
+        if match:
+            try:
+                k = float(match.group(1))
+            except ValueError:
+                k = math.nan
+            if not (math.isfinite(k) and k > 0):
+                raise AltaError(f"{path}: coverage comment {comment[:60]!r} does not give a positive k")
+            return k
+    return None
+
+
 def read_alta(path: str | Path) -> AltaData:
     """Read an ALTA text file; raises AltaError naming file and line for malformed input.
 
-    The header ends at the first line that is neither blank nor starts with `#`;
-    after it only `# comment` lines may be mixed with the rows.
+    The header ends at the first line that is neither blank nor starts with `#`. After it,
+    `# comment` lines may be mixed with the rows, and `#KEY value` lines are skipped with a
+    note, as ALTA's loader does (a #KEY there does not change the header).
     """
     path = Path(path)
     try:
@@ -171,10 +218,11 @@ def read_alta(path: str | Path) -> AltaData:
     n_in, n_out, vs = _check_header(path, header, header_line)
     rows: list[list[float]] = []
     row_lines: list[int] = []
+    notes: list[str] = []
     for lineno, text in lines[start:]:
         if text.startswith("#"):
             if _parse_header_line(text, {}, comments) is not None:
-                raise AltaError(f"{path}:{lineno}: header line after the data: {text!r}")
+                notes.append(f"line {lineno}: {text[:60]!r} after the data skipped, as ALTA's loader does")
         elif text:
             rows.append(_parse_row(path, lineno, text, n_in + n_out + vs))
             row_lines.append(lineno)
@@ -182,7 +230,7 @@ def read_alta(path: str | Path) -> AltaData:
     return AltaData(path=path, header=header, comments=comments, n_in=n_in, n_out=n_out,
                     param_in=header.get("PARAM_IN"), param_out=header.get("PARAM_OUT"), vs=vs,
                     x=table[:, :n_in], y=table[:, n_in:n_in + n_out], ci=table[:, n_in + n_out:],
-                    line=np.array(row_lines, dtype=int))
+                    line=np.array(row_lines, dtype=int), coverage_k=_coverage_k(path, comments), notes=tuple(notes))
 
 
 def _number(value: float | np.ndarray) -> str:
@@ -191,12 +239,14 @@ def _number(value: float | np.ndarray) -> str:
 
 
 def write_alta(path: str | Path, x: np.ndarray, y: np.ndarray, *, param_in: str, param_out: str,
-               ci: np.ndarray | None = None, header: Mapping[str, str] | None = None,
-               comments: Iterable[str] = ()) -> Path:
+               ci: np.ndarray | None = None, coverage_k: float | None = None,
+               header: Mapping[str, str] | None = None, comments: Iterable[str] = ()) -> Path:
     """Write an ALTA text file; values at full double precision so the file reads back exactly.
 
-    `ci`: (M,) ± half-widths (#VS 1) or (M, 2) lower/upper bounds (#VS 2) of the
-    first output; None for #VS 0. `header`: extra `#KEY value` lines (e.g. SAMPLE).
+    `ci`: the vertical segment of the first output as ALTA reads it: (M,) half-widths d
+    (#VS 1, [y − d, y + d]) or (M, 2) distances below and above y (#VS 2); None for #VS 0.
+    `coverage_k`: the k of those columns (half-width = k·u), stated in a comment line that
+    `read_alta` reads back; None writes no such line. `header`: extra `#KEY value` lines (e.g. SAMPLE).
     """
     x = np.atleast_2d(np.asarray(x, float))
     y = np.asarray(y, float).reshape(len(x), -1)
@@ -208,6 +258,12 @@ def write_alta(path: str | Path, x: np.ndarray, y: np.ndarray, *, param_in: str,
     table = np.hstack([x, y, ci])
     if not np.all(np.isfinite(table)):
         raise ValueError("refusing to write non-finite values to an ALTA file")
+    if np.any(ci < 0):
+        raise ValueError("refusing to write a negative vertical-segment half-width or distance")
+    if coverage_k is not None:
+        if not ci.shape[1]:
+            raise ValueError("a coverage factor k without vertical-segment columns (#VS 0)")
+        comments = [*comments, coverage_comment(coverage_k)]
     lines = [f"# {c}" for c in comments]
     lines += [f"#{k} {v}" for k, v in (header or {}).items()]
     lines += [f"#DIM {x.shape[1]} {y.shape[1]}", f"#PARAM_IN {param_in}", f"#PARAM_OUT {param_out}",
@@ -243,12 +299,18 @@ def _directions(param_in: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _uncertainty(data: AltaData) -> np.ndarray | None:
-    """u of the first output: the ± column (#VS 1) or half the [lower, upper] interval (#VS 2)."""
-    if data.vs == 1:
-        return np.abs(data.ci[:, 0])
-    if data.vs == 2:
-        return np.abs(data.ci[:, 1] - data.ci[:, 0]) / 2.0
-    return None
+    """u of the first output: the segment's half-width (#VS 1: d; #VS 2: (d₋ + d₊)/2) divided by k."""
+    if data.vs == 0:
+        return None
+    return data.ci.mean(axis=1) / (data.coverage_k or 1.0)
+
+
+def _uncertainty_note(data: AltaData) -> str:
+    half_width = {1: "the ± column", 2: "half the segment [y − d₋, y + d₊]"}[data.vs]
+    if data.coverage_k is None:
+        return (f"u(f) = {half_width} (#VS {data.vs}), taken as k = 1: the file does not say which "
+                "coverage factor its segments have")
+    return f"u(f) = {half_width} (#VS {data.vs}) / k, k = {data.coverage_k:g} from the file's rig coverage comment"
 
 
 def to_rig(data: AltaData, *, assume_param_out: str | None = None) -> RigPoints:
@@ -263,9 +325,11 @@ def to_rig(data: AltaData, *, assume_param_out: str | None = None) -> RigPoints:
                         f"(supported: {', '.join(CONVERTIBLE_IN)})")
     if data.n_out != 1:
         raise AltaError(f"{where}: {data.n_out} outputs; only single-channel BRDF files can be imported")
-    notes = [f"angles from {data.param_in} (radians) to rig degrees; "
+    notes = [*data.notes, f"angles from {data.param_in} (radians) to rig degrees; "
              + ("light at φi = 0, view φo = Δφ (retroreflection at Δφ = 0)"
                 if data.param_in == "ISOTROPIC_TL_TV_PROJ_DPHI" else "angles carried over unchanged")]
+    if data.vs:
+        notes.append(_uncertainty_note(data))
     param_out = data.param_out
     if param_out is None:
         if assume_param_out is None:
@@ -301,15 +365,16 @@ def to_rig(data: AltaData, *, assume_param_out: str | None = None) -> RigPoints:
 
 
 def _refuse_impossible_values(data: AltaData) -> None:
-    """AltaError naming the line of a negative BRDF, a negative ± half-width (#VS 1) or a lower
-    bound above the upper one (#VS 2): a broken file, not noise whose absolute value to take."""
+    """AltaError naming the line of a negative BRDF or a negative segment half-width or distance:
+    a broken file (or, for #VS 2, one written with the absolute bounds of ALTA before 2017),
+    not noise whose absolute value to take."""
     f = data.y[:, 0]
     checks = [(f < 0, lambda k: f"BRDF value {_number(f[k])} is negative")]
     if data.vs == 1:
         checks.append((data.ci[:, 0] < 0, lambda k: f"uncertainty ±{_number(data.ci[k, 0])} is negative"))
     if data.vs == 2:
-        checks.append((data.ci[:, 1] < data.ci[:, 0], lambda k: f"confidence interval {data.ci[k].tolist()} has "
-                                                                "its lower bound above the upper"))
+        checks.append((np.any(data.ci < 0, axis=1), lambda k: f"segment distances below/above y "
+                       f"{_number(data.ci[k, 0])} {_number(data.ci[k, 1])}: one is negative (#VS 2)"))
     for bad, say in checks:
         if bad.any():
             k = int(np.flatnonzero(bad)[0])

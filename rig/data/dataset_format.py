@@ -16,7 +16,8 @@ import numpy as np
 from rig.physics.budget import BUDGET_COLUMNS
 
 FORMAT = "rig-brdf-dataset"
-FORMAT_VERSION = "1.0"
+#: 1.1: empty cells for values that do not apply (NaN when read); column illuminance_interpolated.
+FORMAT_VERSION = "1.1"
 #: The manifest's pointer to the angle conventions: a document that ships with rig.
 CONVENTIONS = "docs/geometry.md of rig (angle conventions, degrees, phi in [0, 360))"
 
@@ -28,9 +29,11 @@ CONTRACT_COLUMNS = (
     "stage_vertical_deg", "stage_normal_deg", "arm_azimuth_deg", "arm_polar_deg",
     "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
 )
-#: Columns after the contract's: capture details and the relative uncertainty budget (k = 1, rig/physics/budget.py).
+#: Columns after the contract's: capture details, the relative uncertainty budget (k = 1, rig/physics/budget.py)
+#: and whether E⊥ was interpolated between bracketing readings (1) or is the last reading (0).
 PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", "filter_position",
-                   "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg", *BUDGET_COLUMNS)
+                   "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg", *BUDGET_COLUMNS,
+                   "illuminance_interpolated")
 #: brdf.csv as rig writes it.
 BRDF_COLUMNS = CONTRACT_COLUMNS + PROJECT_COLUMNS
 SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
@@ -56,10 +59,27 @@ UNITS = {
 }
 #: brdf.csv columns that are not numbers.
 TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}
+#: Numeric columns every row must fill; any other numeric cell may be empty where it does not apply
+#: (an imported dataset's axis positions, or its u_brdf_per_sr when the source gave none): NaN when read.
+REQUIRED_NUMBER_COLUMNS = ("series", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "brdf_per_sr")
+#: Numeric columns holding whole numbers, and the 0/1 ones (for typed readers such as `Dataset.to_frame`).
+INTEGER_COLUMNS = ("series", "n_frames", "filter_position")
+BOOLEAN_COLUMNS = ("illuminance_interpolated",)
+
+
+def usable_u(u: np.ndarray) -> np.ndarray:
+    """Rows whose u_brdf_per_sr can weight a fit or bound an ALTA segment: finite and > 0 (an empty
+    cell, NaN, is a u that does not apply; 0 would claim an exact value)."""
+    u = np.asarray(u, float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(u) & (u > 0)
 
 
 def _cell(value: Any) -> str:
-    """A csv cell: floats at full precision (repr reads back exactly), lists `;`-joined, never NaN or inf."""
+    """A csv cell: floats at full precision (repr reads back exactly), lists `;`-joined, None (does not
+    apply) empty, never NaN or inf."""
+    if value is None:
+        return ""
     if isinstance(value, (float, np.floating)):
         if not math.isfinite(value):
             raise ValueError(f"refusing to write a non-finite number ({value})")

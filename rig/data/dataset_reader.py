@@ -11,24 +11,39 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rig.data.dataset_format import CONTRACT_COLUMNS, FORMAT, TEXT_COLUMNS, DatasetError
-from rig.physics.geometry import sph_to_vec
+from rig.data.dataset_format import (
+    BOOLEAN_COLUMNS,
+    CONTRACT_COLUMNS,
+    FORMAT,
+    INTEGER_COLUMNS,
+    REQUIRED_NUMBER_COLUMNS,
+    TEXT_COLUMNS,
+    UNITS,
+    DatasetError,
+)
+from rig.physics.geometry import sph_to_vec, vec_to_sph, wrap_360
+
+if TYPE_CHECKING:
+    import pandas as pd  # type: ignore[import-untyped, unused-ignore]
 
 
 @dataclass(frozen=True)
 class Dataset:
-    """A dataset folder in memory: numeric columns as float arrays, the rest as lists of strings."""
+    """A dataset folder in memory: numeric columns as float arrays (NaN where a cell is empty: the value
+    does not apply), the rest as lists of strings."""
 
     path: Path
     manifest: dict
     columns: dict[str, np.ndarray]
     point_id: list[str]
     flags: list[tuple[str, ...]]
+    time_utc: list[str]
     skipped: list[dict]
+    header: tuple[str, ...]      # brdf.csv's columns in the file's order
     torn_bytes: int = 0          # bytes of a torn last line of brdf.csv that were ignored
 
     def __len__(self) -> int:
@@ -43,8 +58,46 @@ class Dataset:
         return (sph_to_vec(rad["theta_i_deg"], rad["phi_i_deg"]),
                 sph_to_vec(rad["theta_o_deg"], rad["phi_o_deg"]))
 
+    def series_incidence_deg(self, series: int) -> tuple[float, float]:
+        """Mean achieved incidence (θi, φi) of a series, degrees (φ in [0, 360)): direction of the mean ωi."""
+        wi, _ = self.directions()
+        theta, phi = vec_to_sph(wi[self.columns["series"] == series].mean(axis=0))
+        return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
+
     def has_flag(self, flag: str) -> np.ndarray:
         return np.array([flag in f for f in self.flags], bool)
+
+    def to_frame(self) -> pd.DataFrame:
+        """brdf.csv as a pandas DataFrame, one row per point, in the file's column order.
+
+        dtypes: numbers float64 with NaN for empty cells; `series`, `n_frames`, `filter_position`
+        nullable Int64; `illuminance_interpolated` nullable boolean; `point_id` and `flags`
+        (`;`-joined, "" when clean) strings; `time_utc` datetime64 UTC; `exposures_s` tuples of
+        floats. `frame.attrs` holds `units` (rig.data.dataset_format.UNITS) and the `manifest`.
+        Needs pandas (the optional extra `pandas`); ImportError saying so without it.
+        """
+        try:
+            import pandas as pd  # type: ignore[import-untyped, unused-ignore]
+        except ImportError:
+            raise ImportError("Dataset.to_frame and load_frame need pandas: pip install 'rig[pandas]' "
+                              "(or pip install pandas)") from None
+        data: dict[str, Any] = {}
+        for name, values in self.columns.items():
+            if name in INTEGER_COLUMNS:
+                data[name] = pd.array([None if np.isnan(v) else int(v) for v in values], dtype="Int64")
+            elif name in BOOLEAN_COLUMNS:
+                data[name] = pd.array([None if np.isnan(v) else bool(v) for v in values], dtype="boolean")
+            elif name == "exposures_s":
+                data[name] = pd.Series(values, dtype=object)
+            else:
+                data[name] = values
+        data["point_id"] = pd.array(self.point_id, dtype="string")
+        data["flags"] = pd.array([";".join(f) for f in self.flags], dtype="string")
+        data["time_utc"] = pd.to_datetime(self.time_utc, utc=True, format="ISO8601")
+        frame = pd.DataFrame({c: data[c] for c in self.header})
+        frame.attrs["units"] = {c: UNITS[c] for c in self.header if c in UNITS}
+        frame.attrs["manifest"] = self.manifest
+        return frame
 
 
 _JSON_KINDS = {list: "array", str: "string", int: "number", float: "number", bool: "boolean", type(None): "null"}
@@ -156,13 +209,20 @@ def _number(table: BrdfTable, k: int, column: str, text: str) -> float:
     return value
 
 
+def _optional_number(table: BrdfTable, k: int, column: str, text: str) -> float:
+    """An empty cell (the value does not apply) as NaN; otherwise `_number`."""
+    return math.nan if text == "" else _number(table, k, column, text)
+
+
 def numeric_columns(table: BrdfTable) -> dict[str, Any]:
-    """Every column but the text ones as a float array, and exposures_s as tuples of floats;
-    DatasetError naming the line of a cell that is not a finite number."""
+    """Every column but the text ones as a float array (NaN for an empty cell, except in
+    REQUIRED_NUMBER_COLUMNS), and exposures_s as tuples of floats; DatasetError naming the line
+    of a cell that is not a finite number."""
     columns: dict[str, Any] = {}
     for name in table.header:
         if name not in TEXT_COLUMNS:
-            columns[name] = np.array([_number(table, k, name, r[name]) for k, r in enumerate(table.rows)], float)
+            read = _number if name in REQUIRED_NUMBER_COLUMNS else _optional_number
+            columns[name] = np.array([read(table, k, name, r[name]) for k, r in enumerate(table.rows)], float)
     columns["exposures_s"] = [tuple(_number(table, k, "exposures_s", x) for x in r["exposures_s"].split(";") if x)
                               for k, r in enumerate(table.rows)]
     return columns
@@ -200,4 +260,10 @@ def load(path: str | Path) -> Dataset:
     columns = numeric_columns(table)
     return Dataset(path=path, manifest=manifest, columns=columns, point_id=[r["point_id"] for r in table.rows],
                    flags=[tuple(f for f in r["flags"].split(";") if f) for r in table.rows],
-                   skipped=_read_skipped(path), torn_bytes=table.torn_bytes)
+                   time_utc=[r["time_utc"] for r in table.rows], skipped=_read_skipped(path),
+                   header=tuple(table.header), torn_bytes=table.torn_bytes)
+
+
+def load_frame(path: str | Path) -> pd.DataFrame:
+    """`load(path).to_frame()`: a dataset folder's brdf.csv as a typed pandas DataFrame (needs pandas)."""
+    return load(path).to_frame()

@@ -1,20 +1,20 @@
-"""`rig export`: a dataset folder → ALTA, Radiance pabopto2bsdf input, a plain CSV, road-lighting quantities.
+"""`rig export`: a dataset folder → ALTA, a plain CSV, road-lighting quantities per point (Radiance:
+rig.data.radiance; road-lighting quantities at the standard geometries: rig.analysis.road).
 
-Formats (ALTA's text format; Radiance's pabopto2bsdf input; CIE / EN 1436 road-lighting quantities):
+Formats (ALTA's text format; CIE / EN 1436 road-lighting quantities):
 - `alta`: one text file, `#DIM 4 1`, `#PARAM_IN SPHERICAL_TL_PL_TV_PV` (θi, φi, θo, φo
   in radians; light = our incident direction, view = our viewing direction, both
   pointing away from the surface), `#PARAM_OUT INV_STERADIAN`, `#VS 1` whose column
-  is u(f) (k = 1). Values at full double precision: the file reads back exactly.
-- `radiance`: a folder with one pab-opto "Mountain" file per incidence series for
-  `pabopto2bsdf`, degrees: `#intheta`, `#inphi` (the series' mean achieved
-  incidence), `#upphi 90` (the sample's y axis is "up", so Radiance applies no
-  rotation and its frame is our SCS), `#format: theta phi BSDF`, rows `θo φo f`.
-  Radiance's incident vector points toward the source like ours.
+  is k·u(f) (k given, default 1, and stated in a comment), `#VS 0` when a row has no
+  usable u (`export_alta`). Values at full double precision: the file reads back exactly.
 - `csv`: one row per point, units in the column names.
-- `rl`: road-lighting quantities per point (EN 1436, CIE 144 r-tables):
+- `rl`: road-lighting quantities per point, each *at the measured geometry* (the
+  definitions of EN 1436 and CIE 144 r-tables applied to the point's own angles;
+  the standard geometries — R_L at θi 88.76°, θo 87.71°; Qd; the r-table at θo 89°;
+  Q0, S1 — need a predictor: rig.analysis.road):
   q = L/E = f_r [sr⁻¹] (E on the surface, directional light);
-  R_L = L/E⊥ = f_r·cos θi, written in mcd·m⁻²·lx⁻¹ (EN 1436);
-  r = q·cos³γ written ×10⁴ as in CIE r-tables, with γ (the measurement note's ε)
+  L/E⊥ = f_r·cos θi, written in mcd·m⁻²·lx⁻¹ (R_L's definition, EN 1436);
+  q·cos³γ written ×10⁴ (r's definition, CIE r-tables), with γ (the measurement note's ε)
   the angle of the light from the normal, γ = θi;
   tan γ = tan θi; β = 180° − |φo − φi| (wrapped to [0°, 180°]): the angle between
   the vertical plane through the light and the one through the observer, 0° when
@@ -29,6 +29,7 @@ Formats (ALTA's text format; Radiance's pabopto2bsdf input; CIE / EN 1436 road-l
 from __future__ import annotations
 
 import csv
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -38,11 +39,12 @@ from numpy.typing import ArrayLike
 
 from rig import __version__
 from rig.data.alta import write_alta
+from rig.data.dataset_format import usable_u
 from rig.data.dataset_reader import Dataset, load
 from rig.data.output_folder import removed_on_failure
-from rig.physics.geometry import angle_between, sph_to_vec, vec_to_sph, wrap_360, wrap_pi
+from rig.physics.geometry import angle_between, sph_to_vec, wrap_pi
 
-FORMATS = ("alta", "radiance", "csv", "rl")
+FORMATS = ("alta", "csv", "rl")
 #: Within this polar angle (degrees) of the normal an azimuth, hence β, is not meaningful
 #: (achieved angles scatter by ~0.01° around a requested normal incidence).
 POLE_DEG = 0.1
@@ -66,40 +68,29 @@ def _angles_rad(ds: Dataset) -> np.ndarray:
     return np.radians(np.stack([ds[c] for c in ANGLE_COLUMNS], axis=1))
 
 
-def export_alta(ds: Dataset, out: Path) -> list[Path]:
+def export_alta(ds: Dataset, out: Path, coverage_k: float = 1.0) -> list[Path]:
+    """One ALTA file; `#VS 1` with half-width k·u(f_r) when every row has a usable u, else `#VS 0`.
+
+    ALTA's fitters take the segment [f − k·u, f + k·u] as a hard bound, so k is the user's choice
+    (`coverage_k`) and is written in a comment that `rig import` reads back. One row without a
+    usable u (finite, > 0: `rig.data.dataset_format.usable_u`) makes the whole file `#VS 0`, said in a
+    comment: ALTA has one #VS per file, a zero half-width would be an exact constraint, and a u
+    invented for that row would be a false one; ALTA gives `#VS 0` points its `--dt` segment.
+    """
+    if not (math.isfinite(coverage_k) and coverage_k > 0):
+        raise ExportError(f"coverage factor k must be a positive number, got {coverage_k}")
+    u = ds["u_brdf_per_sr"]
+    missing = int(np.count_nonzero(~usable_u(u)))
+    columns = "f_r [1/sr]" + (f", {coverage_k:g}·u(f_r) [1/sr]" if not missing else "")
     comments = [f"exported by rig {__version__} from {ds.path}",
-                ("columns: theta_i phi_i theta_o phi_o [rad] (rig SCS, directions away from the surface), "
-                 "f_r [1/sr], u(f_r) [1/sr] (k = 1)")]
-    if ds.has_flag("no_uncertainty").any():
-        comments.append("u(f_r) = 0 where the source gave no uncertainty (flag no_uncertainty)")
-    header = {"SAMPLE": f'"{_sample_id(ds)}"'}
+                f"columns: theta_i phi_i theta_o phi_o [rad] (rig SCS, directions away from the surface), {columns}"]
+    if missing:
+        comments.append(f"#VS 0: {missing} of {len(ds)} rows have no usable u(f_r), so no row's is written "
+                        "(ALTA then applies its --dt segment to every point)")
     return [write_alta(out, _angles_rad(ds), ds["brdf_per_sr"], param_in="SPHERICAL_TL_PL_TV_PV",
-                       param_out="INV_STERADIAN", ci=ds["u_brdf_per_sr"], header=header, comments=comments)]
-
-
-def series_incidence_deg(ds: Dataset, series: int) -> tuple[float, float]:
-    """Mean achieved incidence (θi, φi) of a series, degrees: direction of the mean ωi."""
-    wi, _ = ds.directions()
-    theta, phi = vec_to_sph(wi[ds["series"] == series].mean(axis=0))
-    return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
-
-
-def export_radiance(ds: Dataset, out: Path) -> list[Path]:
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for s in np.unique(ds["series"]).astype(int):
-        rows = ds["series"] == s
-        theta_i, phi_i = series_incidence_deg(ds, s)
-        lines = [f'#sample_name "{_sample_id(ds)}"', f"#data written by rig {__version__} from {ds.path}",
-                 f"#intheta {theta_i:.6f}", f"#inphi {phi_i:.6f}", "#upphi 90",
-                 f"#datapoints_in_file: {int(rows.sum())}", "#format: theta phi BSDF"]
-        lines += [f"{t!r} {p!r} {f!r}" for t, p, f in
-                  zip(ds["theta_o_deg"][rows].tolist(), ds["phi_o_deg"][rows].tolist(),
-                      ds["brdf_per_sr"][rows].tolist())]
-        path = out / f"series{s:02d}_t{theta_i:05.1f}_p{phi_i:05.1f}.txt"
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-        paths.append(path)
-    return paths
+                       param_out="INV_STERADIAN", ci=None if missing else coverage_k * u,
+                       coverage_k=None if missing else coverage_k, header={"SAMPLE": f'"{_sample_id(ds)}"'},
+                       comments=comments)]
 
 
 def _write_table(out: Path, header: list[str], columns: list) -> list[Path]:
@@ -124,14 +115,15 @@ def _flags(ds: Dataset) -> list[str]:
 
 def export_csv(ds: Dataset, out: Path) -> list[Path]:
     header = [*POINT_HEADER, "f_r [1/sr]", "u(f_r) [1/sr]", "flags"]
-    return _write_table(out, header, [*_point_columns(ds), ds["brdf_per_sr"].tolist(),
-                                      ds["u_brdf_per_sr"].tolist(), _flags(ds)])
+    u = ["" if math.isnan(v) else v for v in ds["u_brdf_per_sr"].tolist()]     # empty: no u applies
+    return _write_table(out, header, [*_point_columns(ds), ds["brdf_per_sr"].tolist(), u, _flags(ds)])
 
 
-def road_quantities(theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike, phi_o_deg: ArrayLike,
-                    f: ArrayLike, u: ArrayLike) -> dict[str, np.ndarray]:
-    """q, R_L, r with uncertainties, β, tan γ, observation angle (definitions in the module docstring).
+def measured_road_quantities(theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike,
+                             phi_o_deg: ArrayLike, f: ArrayLike, u: ArrayLike) -> dict[str, np.ndarray]:
+    """q, R_L, r at the given (measured) geometries with uncertainties, β, tan γ, observation angle.
 
+    Definitions in the module docstring; the standard geometries are rig.analysis.road's.
     β is NaN where an azimuth is undefined.
     """
     ti, pi_, to, po = (np.radians(np.asarray(a, float)) for a in (theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg))
@@ -149,28 +141,32 @@ def road_quantities(theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: A
     }
 
 
-#: road_quantities keys → rl table columns (NaN written as an empty cell).
+#: measured_road_quantities keys → rl table columns (NaN written as an empty cell); "at measured geometry":
+#: not the standard quantities, which are defined at fixed geometries (rig.analysis.road).
 RL_COLUMNS = {
-    "q": "q [1/sr]", "u_q": "u(q) [1/sr]", "R_L_mcd": "R_L [mcd/m2/lx]", "u_R_L_mcd": "u(R_L) [mcd/m2/lx]",
-    "r_1e4": "r [1e-4/sr]", "u_r_1e4": "u(r) [1e-4/sr]", "beta_deg": "beta [deg]", "tan_gamma": "tan_gamma [1]",
-    "observation_angle_deg": "observation_angle [deg]",
+    "q": "q at measured geometry [1/sr]", "u_q": "u(q at measured geometry) [1/sr]",
+    "R_L_mcd": "R_L at measured geometry [mcd/m2/lx]", "u_R_L_mcd": "u(R_L at measured geometry) [mcd/m2/lx]",
+    "r_1e4": "r at measured geometry [1e-4/sr]", "u_r_1e4": "u(r at measured geometry) [1e-4/sr]",
+    "beta_deg": "beta [deg]", "tan_gamma": "tan_gamma [1]", "observation_angle_deg": "observation_angle [deg]",
 }
 
 
 def export_rl(ds: Dataset, out: Path) -> list[Path]:
     theta_i, phi_i, theta_o, phi_o = (ds[c] for c in ANGLE_COLUMNS)
-    rq = road_quantities(theta_i, phi_i, theta_o, phi_o, ds["brdf_per_sr"], ds["u_brdf_per_sr"])
+    rq = measured_road_quantities(theta_i, phi_i, theta_o, phi_o, ds["brdf_per_sr"], ds["u_brdf_per_sr"])
     values = [["" if np.isnan(v) else v for v in rq[key].tolist()] for key in RL_COLUMNS]
     return _write_table(out, [*POINT_HEADER, *RL_COLUMNS.values(), "flags"],
                         [*_point_columns(ds), *values, _flags(ds)])
 
 
 EXPORTERS: dict[str, Callable[[Dataset, Path], list[Path]]] = {
-    "alta": export_alta, "radiance": export_radiance, "csv": export_csv, "rl": export_rl}
+    "alta": export_alta, "csv": export_csv, "rl": export_rl}
 
 
-def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLike) -> list[Path]:
-    """Write `dataset` in format `fmt` to `out` (a file; a folder for radiance); returns the files written.
+def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLike, *,
+           coverage_k: float = 1.0) -> list[Path]:
+    """Write `dataset` in format `fmt` to the file `out`; returns the files written. `coverage_k`: ALTA's
+    segment half-width is k·u.
 
     Refuses to overwrite an existing file or a non-empty folder.
     """
@@ -182,4 +178,4 @@ def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLik
     if len(ds) == 0:
         raise ExportError(f"{ds.path}: no measured point to export")
     with removed_on_failure(out):
-        return EXPORTERS[fmt](ds, out)
+        return export_alta(ds, out, coverage_k) if fmt == "alta" else EXPORTERS[fmt](ds, out)

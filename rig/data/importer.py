@@ -5,12 +5,13 @@ Conventions of an imported dataset (also written into its manifest):
   "achieved" angles. Points that cannot be converted go to skipped.csv with the reason.
 - series: one per distinct incidence (θi, φi), in order of first appearance;
   point_id `<series>-L<line>` names the source line of the sample.
-- u_brdf_per_sr: from #VS when the file has it; otherwise 0.0 with the flag
-  `no_uncertainty` (the dataset refuses NaN; fitters must not weight by 1/u then).
+- u_brdf_per_sr: from #VS when the file has it (rig.data.alta: the segment's
+  half-width / k); otherwise empty (NaN when read) with the flag `no_uncertainty`.
 - Photometric columns are relative, for E⊥ = 1 lx: illuminance_normal_lx = 1,
   illuminance_lx = cos θi, luminance_cd_m2 = f·cos θi, so f = L / (E⊥ cos θi) still holds.
 - Columns that do not apply to a foreign instrument (axis positions, saturation,
-  rig clock, and every project column after the contract's) are 0; exposures empty.
+  rig clock, and every project column after the contract's) are empty cells, never 0
+  (a 0 would pass for a measured value, and a 0 u for an exact one).
 - Every row is flagged `imported`; time_utc is the time of the import.
 - A file without #PARAM_OUT is taken as INV_STERADIAN_COSINE_FACTOR unless told
   otherwise: that is the case of the CEA gray tape, whose values fall toward the
@@ -39,12 +40,13 @@ SAME_INCIDENCE_DEG = 1e-6
 CONVENTIONS = {
     "point_id": "<series>-L<line of the sample in the source file>",
     "series": "one per distinct incidence (θi, φi), in order of first appearance in the file",
-    "u_brdf_per_sr": "from #VS (#VS 1: the ± column; #VS 2: half the [lower, upper] interval), "
-                     "else 0.0 with flag no_uncertainty",
+    "u_brdf_per_sr": "from #VS as ALTA reads it (#VS 1: the ± half-width; #VS 2: half the segment "
+                     "[y - below, y + above]), divided by the k of a rig coverage comment (else k = 1); "
+                     "without #VS empty, flag no_uncertainty",
     "photometry": "relative, for E⊥ = 1 lx: illuminance_normal_lx = 1, illuminance_lx = cos θi, "
                   "luminance_cd_m2 = f·cos θi",
-    "not_applicable": "stage/arm axis positions, saturated_fraction, rig_time_s and every project "
-                      "column after the contract's (e.g. n_frames, u_rel_*) = 0; exposures_s empty",
+    "not_applicable": "stage/arm axis positions, saturated_fraction, rig_time_s, exposures_s and every "
+                      "project column after the contract's (e.g. n_frames, u_rel_*): empty cells",
     "flags": "imported on every row; no_uncertainty when the file has no confidence column",
 }
 
@@ -67,8 +69,8 @@ def series_index(theta_i_deg: np.ndarray, phi_i_deg: np.ndarray) -> np.ndarray:
     return rank[inverse.ravel()]
 
 
-#: Every column the rows below do not set (axis positions, saturation, rig clock, project columns) is 0.
-_NOT_APPLICABLE = dict.fromkeys(BRDF_COLUMNS, 0.0)
+#: Every column the rows below do not set (axis positions, saturation, rig clock, project columns) is empty.
+_NOT_APPLICABLE = dict.fromkeys(BRDF_COLUMNS)
 
 
 def _rows(points: RigPoints, ids: list[str], series: np.ndarray, now: str):
@@ -77,13 +79,13 @@ def _rows(points: RigPoints, ids: list[str], series: np.ndarray, now: str):
     for k in np.flatnonzero(points.reason == ""):
         cos_i = float(np.cos(np.radians(a.theta_i_deg[k])))
         f = float(points.brdf[k])
-        u = 0.0 if points.u_brdf is None else float(points.u_brdf[k])
+        u = None if points.u_brdf is None else float(points.u_brdf[k])
         yield _NOT_APPLICABLE | {
             "point_id": ids[k], "series": int(series[k]),
             "theta_i_deg": float(a.theta_i_deg[k]), "phi_i_deg": float(a.phi_i_deg[k]),
             "theta_o_deg": float(a.theta_o_deg[k]), "phi_o_deg": float(a.phi_o_deg[k]),
             "brdf_per_sr": f, "u_brdf_per_sr": u,
-            "luminance_cd_m2": f * cos_i, "u_luminance_cd_m2": u * cos_i,
+            "luminance_cd_m2": f * cos_i, "u_luminance_cd_m2": None if u is None else u * cos_i,
             "illuminance_lx": cos_i, "illuminance_normal_lx": 1.0, "exposures_s": [],
             "flags": ["imported"] + (["no_uncertainty"] if points.u_brdf is None else []), "time_utc": now,
         }

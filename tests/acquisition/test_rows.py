@@ -71,7 +71,8 @@ def test_points_between_two_readings_get_e_perp_interpolated_in_rig_time():
     u_drift_lx = 100.0 / math.sqrt(12.0)                                     # rectangular over the change
     assert middle["u_rel_drift"] == pytest.approx(u_drift_lx / 1050.0, rel=1e-12)
     assert middle["u_illuminance_normal_lx"] == pytest.approx(math.sqrt(0.5 + u_drift_lx ** 2), rel=1e-12)
-    assert middle["flags"] == "retried;drift_corrected"
+    assert middle["flags"] == "retried" and middle["illuminance_interpolated"] == 1     # a column, not a flag
     uncorrected, = bracketed_rows([measurement(5.0)], before, None, CONSTANTS)
     assert uncorrected["illuminance_normal_lx"] == pytest.approx(1000.0, rel=1e-12)
     assert uncorrected["u_rel_drift"] == pytest.approx(0.0, abs=1e-15) and uncorrected["flags"] == "retried"
+    assert uncorrected["illuminance_interpolated"] == 0

@@ -50,7 +50,6 @@ def test_reader_accepts_comments_blank_lines_and_tabs(tmp_path):
     ("#DIM 4 1\n#VS 1\n0 0 0 0 1 0.1\n0 0 0 0 1\n", 4, "expected 6 columns"),
     ("#DIM 4 1\n0 0 0 0 1\n0 0 x 0 1\n", 3, "not a number: 'x'"),
     ("#DIM 4 1\n0 0 0 0 nan\n", 2, "non-finite"),
-    ("#DIM 4 1\n0 0 0 0 1\n#VS 1\n", 3, "header line after the data"),
     ("#DIM 4 1\n#DIM 4 1\n0 0 0 0 1\n", 2, "#DIM given twice"),
 ])
 def test_reader_errors_name_file_and_line(tmp_path, text, line, words):
@@ -104,9 +103,10 @@ def test_cosine_factor_divided_and_grazing_views_left_out(tmp_path):
     assert np.all(np.isfinite(p.brdf))
 
 
-def test_vs2_gives_half_the_interval(tmp_path):
+def test_vs2_gives_half_the_segment_between_the_two_distances(tmp_path):
+    """#VS 2 columns are distances below and above y (ALTA's loader): [1 − 0.1, 1 + 0.3] has half-width 0.2."""
     p = _points(tmp_path, np.radians([[10.0, 0, 20, 0]]), [1.0], "SPHERICAL_TL_PL_TV_PV", "INV_STERADIAN",
-                ci=np.array([[0.9, 1.3]]))
+                ci=np.array([[0.1, 0.3]]))
     assert p.u_brdf[0] == pytest.approx(0.2)
 
 

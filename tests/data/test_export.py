@@ -39,35 +39,6 @@ def test_alta_round_trip(dataset, tmp_path):
     assert np.array_equal(back["u_brdf_per_sr"], dataset["u_brdf_per_sr"])
 
 
-def _radiance_file(path: Path) -> tuple[dict[str, str], np.ndarray]:
-    header, rows = {}, []
-    for line in path.read_text().splitlines():
-        if line.startswith("#"):
-            key, _, value = line[1:].partition(" ")
-            header[key] = value
-        else:
-            rows.append([float(v) for v in line.split()])
-    return header, np.array(rows)
-
-
-def test_radiance_one_file_per_incidence(dataset, tmp_path):
-    paths = ex.export(dataset, "radiance", tmp_path / "rad")
-    series = np.unique(dataset["series"]).astype(int)
-    assert [p.name[:8] for p in paths] == [f"series{s:02d}" for s in series]
-    for s, path in zip(series, paths):
-        header, rows = _radiance_file(path)
-        mine = dataset["series"] == s
-        assert header["format:"] == "theta phi BSDF" and header["upphi"] == "90"
-        assert float(header["intheta"]) == pytest.approx(np.mean(dataset["theta_i_deg"][mine]), abs=0.01)
-        if float(header["intheta"]) > 1:
-            gap = (dataset["phi_i_deg"][mine] - float(header["inphi"]) + 180.0) % 360.0 - 180.0
-            assert np.abs(gap).max() < 0.01
-        assert int(header["datapoints_in_file:"]) == mine.sum() == len(rows)
-        assert np.array_equal(rows, np.stack([dataset["theta_o_deg"][mine], dataset["phi_o_deg"][mine],
-                                              dataset["brdf_per_sr"][mine]], axis=1))
-    assert np.allclose([float(_radiance_file(p)[0]["intheta"]) for p in paths], [0, 40, 80, 85, 85], atol=0.01)
-
-
 def _table(path: Path) -> list[dict[str, str]]:
     with open(path, newline="") as fh:
         return list(csv.DictReader(fh))
@@ -88,7 +59,7 @@ def test_road_quantities_closed_forms():
     theta_o = np.array([20.0, 30.0, 40.0, 87.71, 60.0])
     phi_o = np.array([0.0, 10.0, 190.0, 0.0, 180.0])
     f, u = np.array([0.1, 2.0, 0.3, 1.0, 0.5]), np.array([0.01, 0.02, 0.03, 0.01, 0.0])
-    rq = ex.road_quantities(theta_i, phi_i, theta_o, phi_o, f, u)
+    rq = ex.measured_road_quantities(theta_i, phi_i, theta_o, phi_o, f, u)
     cos_i = np.cos(np.radians(theta_i))
     assert np.array_equal(rq["q"], f)
     assert np.allclose(rq["R_L_mcd"], 1e3 * f * cos_i) and np.allclose(rq["u_R_L_mcd"], 1e3 * u * cos_i)
@@ -106,9 +77,11 @@ def test_rl_file(dataset, tmp_path):
     (path,) = ex.export(dataset, "rl", tmp_path / "rl.csv")
     rows = _table(path)
     assert len(rows) == len(dataset)
-    assert {"q [1/sr]", "R_L [mcd/m2/lx]", "r [1e-4/sr]", "beta [deg]", "tan_gamma [1]"} <= set(rows[0])
+    assert {"q at measured geometry [1/sr]", "R_L at measured geometry [mcd/m2/lx]", "r at measured geometry [1e-4/sr]",
+            "beta [deg]", "tan_gamma [1]"} <= set(rows[0])
     cos_i = np.cos(np.radians(dataset["theta_i_deg"]))
-    assert np.allclose([float(r["R_L [mcd/m2/lx]"]) for r in rows], 1e3 * dataset["brdf_per_sr"] * cos_i)
+    assert np.allclose([float(r["R_L at measured geometry [mcd/m2/lx]"]) for r in rows],
+                       1e3 * dataset["brdf_per_sr"] * cos_i)
     normal = dataset["theta_i_deg"] < ex.POLE_DEG
     assert all((r["beta [deg]"] == "") == bool(n) for r, n in zip(rows, normal))
 
@@ -127,7 +100,7 @@ def test_cli_export(dataset, tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="rig")
     export_cli.add_subcommand(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["export", str(dataset.path), "--format", "radiance", "--out", str(tmp_path / "r")])
-    assert args.func(args) == 0 and "5 files" in capsys.readouterr().err
+    assert args.func(args) == 0 and "4 files" in capsys.readouterr().err       # the two θi = 85° series merged
     assert args.func(args) == 2 and "already exists" in capsys.readouterr().err
     args = parser.parse_args(["export", str(tmp_path / "nope"), "--format", "csv", "--out", str(tmp_path / "c")])
     assert args.func(args) == 2 and "not a dataset folder" in capsys.readouterr().err

@@ -311,4 +311,4 @@ def test_fuzz_import_of_mutated_alta_files(op, where, garbage, cell, vs):
             assert not out.exists()
         else:
             ds = load(out)
-            assert np.all(ds["brdf_per_sr"] >= 0) and np.all(ds["u_brdf_per_sr"] >= 0)
+            assert np.all(ds["brdf_per_sr"] >= 0) and not np.any(ds["u_brdf_per_sr"] < 0)   # NaN: no #VS
