@@ -23,7 +23,7 @@ from rig.acquisition.moves import Mover
 from rig.config.campaign import SpecularAlignment
 from rig.core.values import PointCapture
 from rig.physics import geometry as geo
-from rig.physics.peak_fit import PeakNotFound, fit_log_peak
+from rig.physics.peak_fit import LogPeak, PeakNotFound, fit_log_peak
 
 
 class AlignmentError(RuntimeError):
@@ -49,40 +49,56 @@ class ArmAlignment:
 
 
 def scan_grid_deg(spec: SpecularAlignment) -> tuple[np.ndarray, np.ndarray]:
-    """Arm (azimuth, polar) offsets of the scan, a serpentine over the grid (each move one step)."""
+    """Arm (azimuth, polar) offsets of the scan: the nominal mirror direction, a serpentine over the grid
+    (each move one step), and the nominal direction again, so that the fit can tell a drift of the lamp
+    during the scan from the lobe's slope (rig.physics.peak_fit)."""
     half = (spec.steps - 1) // 2
     ticks = spec.step_deg * np.arange(-half, half + 1)
     rows = [(ticks if k % 2 == 0 else ticks[::-1], np.full(spec.steps, p)) for k, p in enumerate(ticks)]
-    return np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
+    az = np.concatenate([[0.0], *(r[0] for r in rows), [0.0]])
+    polar = np.concatenate([[0.0], *(r[1] for r in rows), [0.0]])
+    return az, polar
 
 
-def align_on_specular(spec: SpecularAlignment, mover: Mover, capture: Callable[[], PointCapture],
-                      event: Callable[..., None]) -> ArmAlignment:
-    """Scan, fit, check, and return the arm's offsets; the mover is left uncorrected (the caller applies them)."""
-    where = f"alignment on the specular peak at θi={spec.theta_i_deg:g}°"
-    nominal = geo.inverse_deg(spec.theta_i_deg, 0.0, spec.theta_i_deg, 180.0, mover.rig.axes.limits(),
-                              mover.position).as_array()
-    if not np.all(np.isfinite(nominal)):
-        raise AlignmentError(f"{where}: the mirror geometry is outside the axes' limits")
+def _scan(where: str, spec: SpecularAlignment, mover: Mover, capture: Callable[[], PointCapture],
+          event: Callable[..., None], nominal: np.ndarray, centre: tuple[float, float]) -> LogPeak:
+    """One scan around `centre` (arm offsets from `nominal`, degrees); its peak in offsets from `nominal`."""
     stage_v, stage_n, arm_a, arm_p = (float(v) for v in nominal)
     d_az, d_polar = scan_grid_deg(spec)
-    luminance, at_az, at_polar = (np.empty(d_az.size) for _ in range(3))
-    for k, (da, dp) in enumerate(zip(d_az, d_polar)):
+    luminance, at_az, at_polar, at_s = (np.empty(d_az.size) for _ in range(4))
+    for k, (da, dp) in enumerate(zip(d_az + centre[0], d_polar + centre[1])):
         mover.move((stage_v, stage_n, arm_a + float(da), arm_p + float(dp)))
         _, _, read_az, read_polar = mover.read_back()         # where the encoders say the arm came to rest
-        at_az[k], at_polar[k] = read_az - arm_a, read_polar - arm_p
+        at_az[k], at_polar[k], at_s[k] = read_az - arm_a, read_polar - arm_p, mover.dev.clock.now()
         cap = capture()
         if "roi_saturated" in cap.flags or not cap.luminance_cd_m2 > 0:
             raise AlignmentError(f"{where}: the ROI {'saturates' if cap.luminance_cd_m2 > 0 else 'is dark'} at "
                                  f"arm offset ({da:+.3f}°, {dp:+.3f}°); a filter wheel or another incidence is needed")
         luminance[k] = cap.luminance_cd_m2
     event("alignment_scan", arm_azimuth_deg=arm_a, arm_polar_deg=arm_p, d_azimuth_deg=at_az.tolist(),
-          d_polar_deg=at_polar.tolist(), luminance_cd_m2=luminance.tolist())
+          d_polar_deg=at_polar.tolist(), luminance_cd_m2=luminance.tolist(), rig_clock_s=at_s.tolist())
     try:
-        peak = fit_log_peak(at_az, at_polar, luminance)
+        return fit_log_peak(at_az, at_polar, luminance, at_s)
     except PeakNotFound as exc:
         raise AlignmentError(f"{where}: {exc}; is the sample glossy, and its peak within "
                              f"±{spec.step_deg * (spec.steps - 1) / 2:g}° of the mirror direction?") from None
+
+
+def align_on_specular(spec: SpecularAlignment, mover: Mover, capture: Callable[[], PointCapture],
+                      event: Callable[..., None]) -> ArmAlignment:
+    """Scan, fit, check, and return the arm's offsets; the mover is left uncorrected (the caller applies them).
+
+    A peak found more than half a step from the scan's centre is scanned once more, centred on it: the
+    log of a real lobe is a quadratic only near its top, so a grid centred on the peak fits it best.
+    """
+    where = f"alignment on the specular peak at θi={spec.theta_i_deg:g}°"
+    nominal = geo.inverse_deg(spec.theta_i_deg, 0.0, spec.theta_i_deg, 180.0, mover.rig.axes.limits(),
+                              mover.position).as_array()
+    if not np.all(np.isfinite(nominal)):
+        raise AlignmentError(f"{where}: the mirror geometry is outside the axes' limits")
+    peak = _scan(where, spec, mover, capture, event, nominal, (0.0, 0.0))
+    if max(abs(peak.x0), abs(peak.y0)) > spec.step_deg / 2 and math.hypot(peak.x0, peak.y0) <= spec.max_offset_deg:
+        peak = _scan(where, spec, mover, capture, event, nominal, (peak.x0, peak.y0))
     offset = math.hypot(peak.x0, peak.y0)
     if offset > spec.max_offset_deg:
         raise AlignmentError(f"{where}: the peak lies {offset:.3f}° from the nominal mirror direction, beyond "

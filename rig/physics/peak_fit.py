@@ -39,8 +39,12 @@ class LogPeak:
     contrast_ln: float
 
 
-def fit_log_peak(x: np.ndarray, y: np.ndarray, values: np.ndarray) -> LogPeak:
+def fit_log_peak(x: np.ndarray, y: np.ndarray, values: np.ndarray, time_s: np.ndarray | None = None) -> LogPeak:
     """The maximum of positive `values` scanned at (x, y): at least 7 points not all on a line.
+
+    `time_s`: when each value was taken. A source that drifts during the scan tilts the lobe along the
+    scan's order and so moves the fitted peak; with the times, a drift linear in time (in ln value) is
+    fitted too, which the scan must make identifiable by visiting one point twice, early and late.
 
     Raises PeakNotFound when the fitted quadratic has no clear maximum (it does not drop, along both
     principal axes, by MIN_DROP_LN and DROP_SIGMAS× the fit's scatter from its top to the scan's edge)
@@ -49,12 +53,18 @@ def fit_log_peak(x: np.ndarray, y: np.ndarray, values: np.ndarray) -> LogPeak:
     x, y, values = (np.asarray(a, float).ravel() for a in (x, y, values))
     if not (x.size == y.size == values.size) or x.size < 7:
         raise ValueError(f"need at least 7 scan points with x, y and a value each, got {x.size}")
+    if time_s is not None and np.asarray(time_s).size != x.size:
+        raise ValueError(f"need a time for each of the {x.size} scan points")
     if not np.all(np.isfinite(values) & (values > 0)):
         raise ValueError("scan values must be positive and finite")
     log_v = np.log(values)
-    design = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+    columns = [np.ones_like(x), x, y, x * x, x * y, y * y]
+    if time_s is not None:
+        t = np.asarray(time_s, float).ravel()
+        columns.append((t - t.mean()) / max(float(np.ptp(t)), 1e-12))     # drift over the scan, ln value
+    design = np.column_stack(columns)
     coef, *_ = np.linalg.lstsq(design, log_v, rcond=None)
-    _, gx, gy, a, b, c = coef
+    _, gx, gy, a, b, c = coef[:6]
     hessian = np.array([[2 * a, b], [b, 2 * c]])
     eig = np.linalg.eigvalsh(hessian)
     dof = x.size - design.shape[1]
@@ -69,7 +79,7 @@ def fit_log_peak(x: np.ndarray, y: np.ndarray, values: np.ndarray) -> LogPeak:
     if not (x.min() <= peak[0] <= x.max() and y.min() <= peak[1] <= y.max()):
         raise PeakNotFound(f"the fitted maximum ({peak[0]:.3g}, {peak[1]:.3g}) lies outside the scan "
                            f"[{x.min():.3g}, {x.max():.3g}] × [{y.min():.3g}, {y.max():.3g}]")
-    cov = s2 * np.linalg.pinv(design.T @ design)
+    cov = s2 * np.linalg.pinv(design.T @ design)[:6, :6]
     jac = _peak_jacobian(hessian, peak)
     cov_peak = jac @ cov @ jac.T
     return LogPeak(x0=float(peak[0]), y0=float(peak[1]), u_x0=float(np.sqrt(max(cov_peak[0, 0], 0.0))),

@@ -63,3 +63,16 @@ def test_bad_input_is_refused():
         fit_log_peak(X[:5], Y[:5], np.ones(5))
     with pytest.raises(ValueError, match="positive"):
         fit_log_peak(X, Y, np.where(X > 0, 1.0, 0.0))
+
+
+def test_a_drift_during_the_scan_is_told_from_the_lobe_by_a_second_visit_of_the_centre():
+    """The source loses 1 % over the scan (serpentine, then the centre again): without the times the peak
+    moves along the scan's slow axis; with them it is where it is."""
+    order = np.argsort(Y * 10 + np.where(np.round(Y / STEP) % 2 == 0, X, -X), kind="stable")
+    x, y = np.r_[0.0, X[order], 0.0], np.r_[0.0, Y[order], 0.0]
+    t = np.arange(x.size, dtype=float)
+    lobe = 100.0 * np.exp(-((x - 0.02) ** 2 + (y + 0.01) ** 2) / (2 * 0.5 ** 2))
+    values = lobe * np.exp(-0.01 * t / t[-1])                # linear in ln value, as the fit assumes
+    blind, told = fit_log_peak(x, y, values), fit_log_peak(x, y, values, t)
+    assert abs(blind.y0 + 0.01) > 0.002                       # the drift looks like a slope along y
+    assert told.x0 == pytest.approx(0.02, abs=1e-9) and told.y0 == pytest.approx(-0.01, abs=1e-9)

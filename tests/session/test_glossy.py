@@ -63,7 +63,9 @@ def test_glossy_lobe_through_the_wheel_has_no_lower_bound_and_honest_uncertainty
     assert all(float(r["u_rel_attenuation"]) > 0 for r in rows if int(r["filter_position"]) > 1)
     rel, z = np.abs(f / truth - 1), (f - truth) / u
     assert np.median(rel) <= 0.01, f"median |relative error| {np.median(rel):.4f}"
-    assert 0.93 <= np.mean(np.abs(z) <= 2) <= 0.97, f"k=2 coverage {np.mean(np.abs(z) <= 2):.3f}"
+    # 0.935 over these 3 seeds, 0.934 over benchmarks/glossy.py's 4: the lower bound keeps a point of margin
+    # for machines whose floating point differs, so that the test guards the budget without being flaky
+    assert 0.92 <= np.mean(np.abs(z) <= 2) <= 0.97, f"k=2 coverage {np.mean(np.abs(z) <= 2):.3f}"
     flank = (truth > 1.0) & (truth < 300.0)                                 # on the lobe, off its peak
     assert flank.sum() > 100 and np.mean(np.abs(z[flank]) <= 2) >= 0.9
     assert any(float(r["lobe_bias_rel"]) != 0 for r in rows)                # the footprint is accounted for
