@@ -4,13 +4,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import warnings
 from pathlib import Path
 
 from rig.analysis.road import export_road
-from rig.cli.predict import predictor_for
+from rig.cli.predict import predictor_for, read_fit
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
@@ -44,12 +43,7 @@ def _export_radiance(args: argparse.Namespace) -> list[Path]:
     with removed_on_failure(out):
         if args.format == "radiance":
             return export_radiance(ds, out, isotropic=not args.anisotropic)
-        fit = None
-        if args.fit:
-            try:
-                fit = json.loads(Path(args.fit).read_text(encoding="utf-8"))
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{args.fit}: line {exc.lineno}: not JSON ({exc.msg})") from None
+        fit = read_fit(args.fit) if args.fit else None
         return export_radiance_xml(ds, out, source=args.source, fit=fit, isotropic=not args.anisotropic,
                                    resolution_log2=args.resolution)
 

@@ -63,15 +63,18 @@ def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | N
         if fit_path or model:
             raise ValueError("--fit and --model go with --method model")
         return InterpolatingPredictor(measured_domain(ds))
-    fit = None
-    if fit_path:
-        try:
-            fit = json.loads(Path(fit_path).read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{fit_path}: line {exc.lineno}: not JSON ({exc.msg})") from None
-        if isinstance(fit, dict) and "fits" in fit:
-            raise ValueError(f"{fit_path}: holds the fits of `--model all`; write one model's fit (--model NAME)")
-    return model_predictor(ds, fit, model, source=str(fit_path))
+    return model_predictor(ds, read_fit(fit_path) if fit_path else None, model, source=str(fit_path))
+
+
+def read_fit(path: str) -> dict:
+    """One model's fit as `rig fit --json` writes it; ValueError names the file and what is wrong."""
+    try:
+        fit = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: line {exc.lineno}: not JSON ({exc.msg})") from None
+    if not isinstance(fit, dict) or "fits" in fit:
+        raise ValueError(f"{path}: not one model's fit (write it with `rig fit DATASET --model NAME --json`)")
+    return fit
 
 
 def cmd_predict(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ from rig.data.dataset_format import (
     UNITS,
     DatasetError,
 )
-from rig.physics.geometry import sph_to_vec, vec_to_sph, wrap_360
+from rig.physics.geometry import mean_direction_deg, sph_to_vec
 
 if TYPE_CHECKING:
     import pandas as pd  # type: ignore[import-untyped, unused-ignore]
@@ -60,9 +60,8 @@ class Dataset:
 
     def series_incidence_deg(self, series: int) -> tuple[float, float]:
         """Mean achieved incidence (θi, φi) of a series, degrees (φ in [0, 360)): direction of the mean ωi."""
-        wi, _ = self.directions()
-        theta, phi = vec_to_sph(wi[self.columns["series"] == series].mean(axis=0))
-        return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
+        rows = self.columns["series"] == series
+        return mean_direction_deg(self.columns["theta_i_deg"][rows], self.columns["phi_i_deg"][rows])
 
     def has_flag(self, flag: str) -> np.ndarray:
         return np.array([flag in f for f in self.flags], bool)

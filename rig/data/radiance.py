@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike
 from rig import __version__
 from rig.data.dataset_reader import Dataset
 from rig.data.radiance_cal import FUNCTION, model_cal
-from rig.physics.geometry import sph_to_vec, vec_to_sph, wrap_360
+from rig.physics.geometry import mean_direction_deg, wrap_360
 
 #: Series whose mean θi differ by at most this (degrees) are one incidence once turned to φi = 0
 #: (achieved angles scatter by ~0.01° around a requested one).
@@ -90,13 +90,6 @@ def file_name(series: tuple[int, ...], theta_i_deg: float, phi_i_deg: float) -> 
     return f"series{'-'.join(f'{s:02d}' for s in series)}_t{theta_i_deg:05.1f}_p{azimuth_text(phi_i_deg, 1):0>5}.txt"
 
 
-def mean_incidence_deg(theta_i_deg: ArrayLike, phi_i_deg: ArrayLike) -> tuple[float, float]:
-    """(θ, φ) in degrees of the mean incident direction of some points; φ in [0, 360)."""
-    wi = sph_to_vec(np.radians(np.asarray(theta_i_deg, float)), np.radians(np.asarray(phi_i_deg, float)))
-    theta, phi = vec_to_sph(wi.mean(axis=0))
-    return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
-
-
 def relative_azimuth_deg(phi_i_deg: ArrayLike, phi_o_deg: ArrayLike) -> np.ndarray:
     """φo − φi in [0, 360): the view's azimuth once the incidence is turned to φi = 0."""
     return wrap_360(np.asarray(phi_o_deg, float) - np.asarray(phi_i_deg, float))
@@ -107,7 +100,7 @@ def series_files(ds: Dataset) -> list[MountainFile]:
     files = []
     for s in np.unique(ds["series"]).astype(int):
         rows = ds["series"] == s
-        theta_i, phi_i = mean_incidence_deg(ds["theta_i_deg"][rows], ds["phi_i_deg"][rows])
+        theta_i, phi_i = mean_direction_deg(ds["theta_i_deg"][rows], ds["phi_i_deg"][rows])
         files.append(MountainFile(theta_i, phi_i, ds["theta_o_deg"][rows], ds["phi_o_deg"][rows],
                                   ds["brdf_per_sr"][rows], (int(s),)))
     return files
@@ -116,7 +109,7 @@ def series_files(ds: Dataset) -> list[MountainFile]:
 def merged_isotropic_files(ds: Dataset, tol_deg: float = THETA_MERGE_TOL_DEG) -> list[MountainFile]:
     """One file per θi (series within `tol_deg` of the previous one merged), every view turned to φi = 0."""
     series = np.unique(ds["series"]).astype(int)
-    theta = np.array([mean_incidence_deg(ds["theta_i_deg"][ds["series"] == s],
+    theta = np.array([mean_direction_deg(ds["theta_i_deg"][ds["series"] == s],
                                          ds["phi_i_deg"][ds["series"] == s])[0] for s in series])
     order = np.argsort(theta, kind="stable")
     groups: list[list[int]] = []

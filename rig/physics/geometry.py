@@ -75,6 +75,14 @@ def wrap_pi(angle: ArrayLike) -> np.ndarray:
     return wrap_2pi(np.asarray(angle, float) + np.pi) - np.pi
 
 
+def mean_direction_deg(theta_deg: ArrayLike, phi_deg: ArrayLike) -> tuple[float, float]:
+    """(θ, φ) in degrees (φ in [0, 360)) of the mean of some directions' unit vectors: an average that
+    does not break where φ wraps or at the pole."""
+    v = sph_to_vec(np.radians(np.asarray(theta_deg, float)), np.radians(np.asarray(phi_deg, float)))
+    theta, phi = vec_to_sph(v.reshape(-1, 3).mean(axis=0))
+    return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
+
+
 def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Dot products along the last axis, broadcasting the others (einsum: no big temporaries)."""
     return np.einsum("...i,...i->...", u, v)
