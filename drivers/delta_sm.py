@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
+from typing import Any, TypeVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -52,6 +52,7 @@ FEEDS_PER_PERIOD = 4
 #: The watchdog's range (manual §5.6.10), ms.
 WATCHDOG_MIN_MS, WATCHDOG_MAX_MS = 20, 10000
 MAKER = "DELTA ELEKTRONIKA"
+T = TypeVar("T")
 
 
 def plain(value: float) -> str:
@@ -123,6 +124,7 @@ class DeltaSM(LineInstrument, LampSupply):
             raise DeviceError(name, f"lamp current {current_a:g} A exceeds the current limit {current_limit_a:g} A")
         super().__init__(url, name=name, clock=clock, timeout_s=timeout_s, retry=retry, open_port=open_port)
         self._held: list[tuple[str, dict[str, Any]]] = []
+        self._answered_at_s = -math.inf          # rig time of the supply's last reply
         self._sink: EventSink | None = None
         self.ramp_step_s = ramp_step_s
         self.ramp_s = ramp_s
@@ -133,8 +135,9 @@ class DeltaSM(LineInstrument, LampSupply):
         except BaseException:
             self.link.close()
             raise
-        self._cancel_feed: Callable[[], None] | None = clock.keep_alive(
-            self.watchdog_ms / 1000 / FEEDS_PER_PERIOD, self._feed_watchdog)
+        self._feed_period_s = self.watchdog_ms / 1000 / FEEDS_PER_PERIOD
+        self._fed_last_time = True
+        self._cancel_feed: Callable[[], None] | None = clock.keep_alive(self._feed_period_s, self._feed_watchdog)
 
     @classmethod
     def from_rig(cls, *, clock: Clock, settings: Any, address: str, timeout_s: float = 1.0) -> DeltaSM:
@@ -238,10 +241,26 @@ class DeltaSM(LineInstrument, LampSupply):
             raise first
 
     # -- the watchdog ----------------------------------------------------------------------------
+    def ask(self, query: Query[T], *args: object, timeout_s: float | None = None) -> T:
+        """`LineInstrument.ask`, noting when the supply last answered: the command reached it, and any valid
+        command restarts its watchdog (manual §5.6.10), so the keep-alive may skip a feed after it."""
+        value = super().ask(query, *args, timeout_s=timeout_s)
+        self._answered_at_s = self.clock.now()
+        return value
+
     def _feed_watchdog(self) -> None:
         """Keep-alive (runs during sleeps): one query restarts the watchdog. If it had expired (0) or is off
         (-1: the supply restarted), say so and re-arm it; the output stays off. A failed feed is reported
-        and swallowed, never retried here: if the link stays dead, the watchdog does its job."""
+        and swallowed, never retried here: if the link stays dead, the watchdog does its job.
+
+        A feed due less than a feed period after the supply answered a command is skipped (the command
+        restarted the watchdog), but never two in a row: the supply is silent for less than two feed periods
+        (half the watchdog time), and a watchdog found expired or off is still noticed within that time.
+        Between points the lamp is queried anyway (the lamp suspender), so this saves one exchange a point."""
+        if self._fed_last_time and self.clock.now() - self._answered_at_s < self._feed_period_s:
+            self._fed_last_time = False
+            return
+        self._fed_last_time = True
         try:
             remaining_ms = self.ask(WATCHDOG_STATE)
             if remaining_ms <= 0:

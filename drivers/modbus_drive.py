@@ -195,7 +195,10 @@ class ModbusDriveAxis(Axis):
         values = [counts[v] if isinstance(v, str) else v for v in self.map.move.values]
         self._write("start move", self.map.move.address, values)
         self._at_steps = target
-        self._done_at = self.controller.clock.now() + self.move_time_s(start / self.steps_per_degree, target_deg)
+        # From the steps sent, not the degrees asked: a prediction short of the drive's own move by the rounding
+        # (up to half a step) would cost a second status poll and a poll interval of rig time.
+        self._done_at = self.controller.clock.now() + self.move_time_s(start / self.steps_per_degree,
+                                                                       target / self.steps_per_degree)
 
     def wait(self, timeout_s: float | None = None) -> None:
         """Sleep the predicted move time, then poll; without a timeout allow twice the prediction + 1 s."""

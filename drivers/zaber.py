@@ -58,6 +58,8 @@ FLAGS = {
     "NJ": "joystick calibrating", "NB": "firmware update mode",
 }
 NOT_HOMED = frozenset({"WR", "WH"})
+#: A reply's flag field when no flag is present.
+NO_FLAG = "--"
 #: Flags that end a move or mean the position cannot be trusted; the others are reported as events.
 ERROR_FLAGS = frozenset({f for f in FLAGS if f.startswith("F")} | {"WL", "WS", "WM"} | NOT_HOMED)
 #: Info/alert lines skipped while waiting for a reply, at most.
@@ -320,21 +322,26 @@ class ZaberAxis(Axis):
         return reply
 
     def _settle(self, what: str, predicted_s: float, timeout_s: float) -> tuple[str, ...]:
-        """Sleep the predicted time (capped by the timeout), poll until IDLE; the warnings then present."""
+        """Sleep the predicted time (capped by the timeout), poll until IDLE; the warnings then present.
+
+        The IDLE reply carries the highest-priority flag: `--` means there is none at all, so the
+        `warnings` request that would list them is sent only when that reply shows a flag."""
         clock = self.controller.clock
         deadline = clock.now() + timeout_s
         clock.sleep(min(predicted_s + self._GUARD_S, timeout_s))
-        while self._command(STATUS).busy:
+        while (status := self._command(STATUS)).busy:
             left = deadline - clock.now()
             if left <= 0:
                 raise DeviceError(self.name, f"{what} not finished after {timeout_s:.3g} s ({self.where()} BUSY)")
             clock.sleep(min(self.poll_s, left))
+        if status.flag == NO_FLAG:
+            return ()
         flags = self.warnings()
         self._check_flags(f"after the {what}", flags)
         return flags
 
     def _check_flags(self, what: str, flags: Sequence[str]) -> None:
-        expected = {"--"} if self.homed else {"--", *NOT_HOMED}
+        expected = {NO_FLAG} if self.homed else {NO_FLAG, *NOT_HOMED}
         errors = [f for f in flags if f in ERROR_FLAGS and f not in expected]
         for flag in sorted(set(flags) - set(errors) - expected):
             self.controller.events("warning", device=self.name, what=what, flag=flag_meaning(flag))

@@ -55,6 +55,8 @@ class LampPhysics:
         self._on_since = 0.0
         self._ramp = (0.0, 0.0, 0.0, 0.0)                          # (t0, t1, i0, i1)
         self._thermal = (clock.now(), self.cold_resistance_ohm)    # (t, R) at the last change
+        #: (thermal state, ramp, t, R): from t on, with that state and ramp, the filament has settled at R
+        self._settled: tuple[tuple[float, float], tuple[float, float, float, float], float, float] | None = None
 
     # -- what the supply does ----------------------------------------------------------------
     def set_current(self, current_a: float, ramp_s: float = 0.0) -> None:
@@ -106,6 +108,9 @@ class LampPhysics:
     def resistance_ohm(self, t: float | None = None) -> float:
         """Filament resistance at time t ≥ the last change (earlier t gives the value at that change)."""
         t = self.clock.now() if t is None else t
+        settled = self._settled
+        if settled is not None and settled[0] is self._thermal and settled[1] is self._ramp and t >= settled[2]:
+            return settled[3]                   # the integration below would end at the same settled value
         t_a, r = self._thermal
         steps = math.ceil(max(t - t_a, 0.0) * STEPS_PER_TAU / self.thermal_tau_s)
         if steps == 0:
@@ -117,6 +122,7 @@ class LampPhysics:
             r_ss = self.steady_resistance_ohm(self._through_filament(mid, r))
             r = r_ss + (r - r_ss) * decay
             if mid >= self._ramp[1] and abs(r - r_ss) <= SETTLED_REL * r_ss:
+                self._settled = (self._thermal, self._ramp, mid, r_ss)
                 return r_ss                     # constant drive and settled: nothing changes any more
         return r
 

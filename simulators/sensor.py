@@ -15,6 +15,7 @@ the charge conversion (`simulation.nonlinearity_rel`, 0 by default) bends the re
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -24,21 +25,42 @@ from rig.core.values import Window
 #: Poisson means are capped at this multiple of the full well: the pixel saturates
 #: anyway, and numpy's Poisson sampler refuses astronomically large means.
 SATURATION_GUARD = 2.0
+#: Largest skewness of Poisson(λ) + N(0, σd²) at which the charge is drawn as a normal (see electrons).
+NORMAL_MAX_SKEWNESS = 0.02
 
 
 def electrons(rng: np.random.Generator, mean_e: np.ndarray, read_noise_e: float,
               full_well_e: float) -> np.ndarray:
-    """Collected charge in e⁻: Poisson(mean) + N(0, σd), clipped at the full well.
+    """Collected charge in e⁻ (float32): Poisson(mean) + N(0, σd), clipped at the full well.
 
     Photo and dark electrons are independent Poisson variables, so their sum is
     drawn as one Poisson variable of the summed mean. Read noise is added
     before the full-well clip so that a saturated pixel reads exactly the
     saturation value, as on a camera whose ADC range matches its full well.
+
+    Where it is indistinguishable, the charge is drawn as one normal N(λ, λ + σd²)
+    (float32, 3× faster than numpy's Poisson sampler on a full frame): it has the
+    exact mean and variance of Poisson(λ) + N(0, σd²), and the sum's higher cumulants
+    differ from the normal's (zero) by λ each, so the largest error is the skewness
+    γ = λ/(λ + σd²)^{3/2}; pixels with γ ≤ NORMAL_MAX_SKEWNESS take the normal. Large
+    counts (γ ≈ 1/√λ) qualify, and small ones only under read noise much wider than
+    the Poisson steps (σd = 8 e⁻: λ ≤ 10 or λ ≥ 2500); without read noise every
+    count below 2500 e⁻ is drawn exactly, in between too.
     """
-    mean_e = np.minimum(mean_e, SATURATION_GUARD * full_well_e)
-    charge = rng.poisson(mean_e).astype(float)
-    if read_noise_e > 0:
-        charge += rng.normal(0.0, read_noise_e, charge.shape)
+    mean_e = np.minimum(mean_e, SATURATION_GUARD * full_well_e, dtype=np.float32)
+    var_e2 = mean_e + np.float32(read_noise_e ** 2)
+    cube = np.square(var_e2)
+    cube *= var_e2
+    cube *= NORMAL_MAX_SKEWNESS ** 2
+    exact = np.square(mean_e) > cube                                            # γ² > limit²
+    charge = rng.standard_normal(mean_e.shape, dtype=np.float32)
+    charge *= np.sqrt(var_e2, out=var_e2)
+    charge += mean_e
+    if exact.any():
+        poisson = rng.poisson(mean_e[exact]).astype(np.float32)
+        if read_noise_e > 0:
+            poisson += rng.normal(0.0, read_noise_e, poisson.shape).astype(np.float32)
+        charge[exact] = poisson
     return np.minimum(charge, full_well_e, out=charge)
 
 
@@ -60,8 +82,10 @@ def convert_nonlinear(charge_e: np.ndarray, nonlinearity_rel: float, full_well_e
 def digitise(electrons_e: np.ndarray, gain_dn_per_e: float, black_level_dn: float,
              bit_depth: int) -> np.ndarray:
     """DN = round(black level + K·e), clipped to the ADC range, as uint16."""
-    dn = np.rint(black_level_dn + gain_dn_per_e * electrons_e)
-    return np.clip(dn, 0, 2 ** bit_depth - 1).astype(np.uint16)
+    dn = np.multiply(electrons_e, gain_dn_per_e, dtype=np.result_type(electrons_e, np.float32))
+    dn += black_level_dn
+    np.rint(dn, out=dn)
+    return np.clip(dn, 0, 2 ** bit_depth - 1, out=dn).astype(np.uint16)
 
 
 @dataclass(frozen=True)
@@ -87,13 +111,21 @@ class SensorModel:
         dark = np.maximum(sim.dark_current_e_s + sim.dsnu_e_s * rng.standard_normal(shape), 0.0)
         return cls(camera, gain, dark, natural_vignetting(camera), sim.nonlinearity_rel)
 
+    @cached_property
+    def _response(self) -> tuple[np.ndarray, np.ndarray]:
+        """gain · illumination and dark_e_s in float32: what mean_electrons multiplies by, once."""
+        return (self.gain * self.illumination).astype(np.float32), self.dark_e_s.astype(np.float32)
+
     def mean_electrons(self, luminance_cd_m2: np.ndarray | float, exposure_s: float,
                        window: Window) -> np.ndarray:
-        """Expected photo + dark electrons (height, width) of the window."""
+        """Expected photo + dark electrons (height, width) of the window (float32)."""
         rows = slice(window.y0, window.y0 + window.height)
         cols = slice(window.x0, window.x0 + window.width)
-        photo = (self.camera.responsivity_e_per_cd_m2_s * exposure_s) * luminance_cd_m2
-        return photo * (self.gain[rows, cols] * self.illumination[rows, cols]) + self.dark_e_s[rows, cols] * exposure_s
+        response, dark_e_s = (a[rows, cols] for a in self._response)
+        mean = np.multiply(dark_e_s, exposure_s, dtype=np.float32)
+        mean += np.multiply(luminance_cd_m2, self.camera.responsivity_e_per_cd_m2_s * exposure_s,
+                            dtype=np.float32) * response
+        return mean
 
     def read(self, rng: np.random.Generator, luminance_cd_m2: np.ndarray | float,
              exposure_s: float, window: Window) -> np.ndarray:

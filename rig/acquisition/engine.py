@@ -1,22 +1,19 @@
 """The run engine: executes a plan on a set of devices and writes the dataset.
 
-It owns the sequence (warm-up, E⊥ on a schedule, then per point: move, capture,
-reading, row, append) and the exits: whatever happens, the lamp is switched off, the
-axes are stopped and the manifest says how the run ended (rig.acquisition.outcome).
-It does I/O and bookkeeping; the physics it calls (kinematics, HDR merge, BRDF,
-uncertainty, rows) is pure.
+It owns the sequence (warm-up, E⊥ on a schedule, then per point: move, capture, reading, row, append) and the
+exits: whatever happens, the lamp is switched off, the axes are stopped and the manifest says how the run ended
+(rig.acquisition.outcome). It does I/O and bookkeeping; the physics it calls (kinematics, HDR merge, BRDF,
+uncertainty, rows) is pure. An adaptive campaign's points arrive in batches from a `PointSource`.
 
-Drift correction needs the E⊥ reading *after* a point, so with
-`illuminance.correction: interpolate` a measured point is first written ahead
-to events.jsonl (`point_pending`, fsync'ed: nothing is lost if the process
-dies) and appended to brdf.csv once the next reading brackets it (rig.acquisition.ledger).
+Drift correction needs the E⊥ reading *after* a point, so with `illuminance.correction: interpolate` a measured
+point is first written ahead to events.jsonl (`point_pending`, fsync'ed: nothing is lost if the process dies)
+and appended to brdf.csv once the next reading brackets it (rig.acquisition.ledger).
 
-Interruption: suspenders (rig.acquisition.suspenders) pause the run, and every tripped one
-is handled by `Runner._suspend`. The operator's stop and abort requests
-(rig.acquisition.stopping) are honoured between points and in every wait: a graceful stop
-finishes the point in flight, brackets the waiting points with a closing E⊥ reading and
-parks; an abort stops the axes now. Either way the exit path makes the rig safe first,
-and nothing can interrupt it.
+Interruption: suspenders (rig.acquisition.suspenders) pause the run, and every tripped one is handled by
+`Runner._suspend`. The operator's stop and abort requests (rig.acquisition.stopping) are honoured between points
+and in every wait: a graceful stop finishes the point in flight, brackets the waiting points with a closing E⊥
+reading and parks; an abort stops the axes now. Either way the exit path makes the rig safe first, and nothing
+can interrupt it.
 """
 
 from __future__ import annotations
@@ -34,6 +31,7 @@ from rig.acquisition.calibrated_capture import point_windows
 from rig.acquisition.capture import DarkFrameCache
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
+from rig.acquisition.meter_readings import illuminance_of
 from rig.acquisition.moves import CollisionError, Motors, Mover
 from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_of
 from rig.acquisition.rows import Measurement, RowConstants
@@ -51,9 +49,9 @@ from rig.drivers.interfaces import RigDevices
 from rig.physics import geometry as geo
 from rig.physics.budget import lobe_view_u_deg
 from rig.physics.footprint import view_footprint_deg
-from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule, estimate
+from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule
 from rig.physics.optics import roi_inside_spot
-from rig.planning.points import Plan, PlannedPoint
+from rig.planning.points import Plan, PlannedPoint, PointSource
 
 #: Nominal capture time per point for plan estimates (`rig plan`, the ETA): probe, one main
 #: exposure, readouts. The ETA corrects it by the rig time the points actually take.
@@ -69,14 +67,17 @@ class Runner:
     PARK_DEG: Motors = (0.0, 0.0, 0.0, 0.0)
 
     def __init__(self, campaign: Campaign, plan: Plan, devices: RigDevices, writer: DatasetWriter,
-                 rig: RigConfig, progress: ProgressCallback | None = None, done_rows: Sequence[dict] = ()):
-        """`done_rows`: rows already in the dataset (a resume); their points are not measured again."""
+                 rig: RigConfig, progress: ProgressCallback | None = None, done_rows: Sequence[dict] = (),
+                 source: PointSource | None = None):
+        """`done_rows`: rows already in the dataset (a resume); their points are not measured again.
+        `source`: where more points come from once the plan's are measured (an adaptive campaign)."""
         self.campaign = campaign
         self.plan = plan
         self.dev = devices
         self.writer = writer
         self.rig = rig
         self.progress: ProgressCallback = progress or (lambda p: None)
+        self.source = source
         self.settings = campaign.capture.settings()
         self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure, clock=devices.clock)
         self.optics = camera_optics(rig)
@@ -145,16 +146,8 @@ class Runner:
         def take() -> list[IlluminanceReading]:
             return [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
         readings = self._answering(take) if pause else take()
-        values = np.array([r.illuminance_lx for r in readings])
-        if not values.mean() > 0:
-            raise DeviceError("meter", f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
-                                       " no light on the detector")
-        range_u = [0.0 if r.range_index is None else self.rig.meter.range_u_rel[r.range_index] for r in readings]
-        est = estimate(values, self.rig_time(), self.rig.meter.repeatability_rel, self.rig.meter.calibration_u_rel,
-                       np.array(range_u))
-        self.writer.event("illuminance", illuminance_normal_lx=est.value_lx, u_lx=est.u_lx,
-                          readings=est.n, photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
-                          calibration_lx_per_a=readings[0].calibration_lx_per_a, rig_time_s=est.rig_time_s)
+        est, fields = illuminance_of(readings, self.rig_time(), self.rig.meter)
+        self.writer.event("illuminance", **fields)
         return est
 
     def _new_reading(self) -> list[PlannedPoint]:
@@ -314,16 +307,24 @@ class Runner:
             self._report(f"θi={s.theta_i_deg:g}° φi={s.phi_i_deg:g}°")
             if not queue and self.reading is not None:
                 queue.extend(self._new_reading())   # closing reading; re-takes if the lamp jumped
+            if not queue:
+                queue.extend(self._more_points())
         self.eta.measuring(False)
+
+    def _more_points(self) -> list[PlannedPoint]:
+        """The source's next batch (every row final: the closing reading came first), added to the plan."""
+        batch = list(self.source.next_batch(self.ledger.rows, self._event)) if self.source else []
+        self.plan = replace(self.plan, points=self.plan.points + tuple(batch))
+        self.eta.add(point_estimates_s(replace(self.plan, points=tuple(batch)), self.mover.position, self.rig.axes,
+                                       NOMINAL_CAPTURE_S))
+        return batch
 
     def _closing_reading(self) -> None:
         """After a graceful stop: one E⊥ reading brackets the points waiting for one; nothing waits.
 
-        No point waits during the warm-up or a pause (a pause writes them first), so then
-        there is no reading to take. A meter that does not answer leaves them with the last
-        E⊥ (the exit path writes them); a jump beyond the drift limit discards them, so that
-        `--resume` measures them again.
-        """
+        No point waits during the warm-up or a pause (a pause writes them first), so then there is no reading to
+        take. A meter that does not answer leaves them with the last E⊥ (the exit path writes them); a jump beyond
+        the drift limit discards them, so that `--resume` measures them again."""
         if not self.ledger.pending:
             return
         try:

@@ -47,6 +47,11 @@ class Eta:
             self.active_s += now - self.active_since
         self.active_since = now if active else None
 
+    def add(self, estimates_s: dict[str, float]) -> None:
+        """Points added to the plan while the run goes (an adaptive campaign's batch)."""
+        self.estimates_s.update(estimates_s)
+        self.left_estimate_s += sum(estimates_s.values())
+
     def done(self, point_id: str) -> None:
         self.done_estimate_s += self.estimates_s[point_id]
         self.left_estimate_s -= self.estimates_s[point_id]

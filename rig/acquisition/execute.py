@@ -19,7 +19,7 @@ from rig.config.rigfile import RigConfig
 from rig.core.values import ProgressCallback
 from rig.data.dataset import DatasetWriter
 from rig.drivers.interfaces import RigDevices
-from rig.planning.points import Plan
+from rig.planning.points import Plan, PointSource
 
 
 def manifest_for(campaign: Campaign, campaign_path: Path | None, rig: RigConfig) -> dict:
@@ -115,10 +115,11 @@ def stop_on_signals(requests: SignalRequests) -> Iterator[None]:
 def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
             devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None = None, *,
             writer: DatasetWriter | None = None, done_rows: Sequence[dict] = (),
-            handle_signals: bool = False) -> RunOutcome:
+            handle_signals: bool = False, source: PointSource | None = None) -> RunOutcome:
     """Measure `plan` into a new dataset folder `out` (DatasetError if it cannot be created),
     or into `writer`'s reopened folder, leaving out `done_rows` (a resume).
 
+    `source`: more points once the plan's are measured (an adaptive campaign: rig.session.adaptive_sampler).
     `devices` is entered only once the dataset folder exists (the caller decides which rig:
     rig.session.connect.open_campaign_rig gives the simulated or the real one).
 
@@ -128,12 +129,14 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     """
     requests = SignalRequests()
     with stop_on_signals(requests) if handle_signals else nullcontext():
-        return _execute(campaign, campaign_path, rig, plan, out, devices, progress, writer, done_rows, requests)
+        return _execute(campaign, campaign_path, rig, plan, out, devices, progress, writer, done_rows, requests,
+                        source)
 
 
 def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
              devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None,
-             writer: DatasetWriter | None, done_rows: Sequence[dict], requests: SignalRequests) -> RunOutcome:
+             writer: DatasetWriter | None, done_rows: Sequence[dict], requests: SignalRequests,
+             source: PointSource | None) -> RunOutcome:
     """`execute` with the signals already routed to `requests`."""
     if writer is None:
         writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
@@ -142,7 +145,8 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
     runner = None
     try:
         with devices as opened:
-            runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows)
+            runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows,
+                            source=source)
             requests.attach(runner)
             ending = RunEnding(runner.run())
     except (KeyboardInterrupt, Exception) as exc:   # KeyboardInterrupt: handle_signals=False, Python's Ctrl+C

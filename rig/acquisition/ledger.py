@@ -39,7 +39,7 @@ class Ledger:
             self.pending.append(m)
             self.writer.event("point_pending", row=row)   # a crash before the next reading loses nothing
         else:
-            self._append(row)
+            self._append([row])
 
     def discard_last(self, n: int, reason: str) -> list[PlannedPoint]:
         """Discard the last `n` points waiting for E⊥ (they are measured again); returns their points."""
@@ -55,13 +55,13 @@ class Ledger:
     def write_pending(self, before: IlluminanceEstimate | None, after: IlluminanceEstimate | None) -> None:
         """Append the waiting points with E⊥ interpolated between `before` and `after` (or `before` alone).
 
-        Points only wait after a reading, so `before` is None only when none waits.
+        Points only wait after a reading, so `before` is None only when none waits. The rows go out in one
+        write and one fsync (`DatasetWriter.append_rows`): each is on disk before this returns.
         """
         if before is not None:
-            for row in bracketed_rows(self.pending, before, after, self.constants):
-                self._append(row)
+            self._append(bracketed_rows(self.pending, before, after, self.constants))
         self.pending.clear()
 
-    def _append(self, row: dict) -> None:
-        self.writer.append_row(row)
-        self.rows.append(row)
+    def _append(self, rows: Sequence[dict]) -> None:
+        self.writer.append_rows(rows)
+        self.rows.extend(rows)

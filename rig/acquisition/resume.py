@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ from rig.data.dataset_format import BRDF_COLUMNS
 from rig.data.dataset_reader import complete_lines, numeric_columns, read_brdf_table
 from rig.data.output_folder import folder_size
 from rig.devices import check_devices
+from rig.planning.candidates import candidate_plan, logged_points
 from rig.planning.plan import build_plan
 from rig.planning.points import Plan
 
@@ -48,6 +50,7 @@ class Resumption:
     rig: RigConfig
     plan: Plan
     done_rows: list[dict]
+    logged_batches: list[dict]          # an adaptive campaign's `adaptive_batch` events (rig.planning.candidates)
 
 
 def _rows(folder: Path) -> list[dict]:
@@ -89,11 +92,10 @@ def _corrupt(path: Path, lineno: int, what: str) -> ResumeError:
                        "back discarded ones, so nothing was changed: repair or delete that line, then resume again")
 
 
-def _pending_rows(folder: Path) -> dict[str, dict]:
-    """Rows written ahead in events.jsonl and not discarded later, by point id (the last one wins)."""
+def _events(folder: Path) -> Iterator[tuple[Path, int, dict]]:
+    """(file, line number, event) of every line of events.jsonl; ResumeError at a line that is not a JSON object."""
     path = folder / "events.jsonl"
     text, _ = complete_lines(path, path.read_bytes())      # reopen has cut a torn last line
-    pending: dict[str, dict] = {}
     for lineno, line in enumerate(text.split("\n")[:-1], start=1):
         try:
             event = json.loads(line)
@@ -101,6 +103,13 @@ def _pending_rows(folder: Path) -> dict[str, dict]:
             raise _corrupt(path, lineno, "not valid JSON") from None
         if not isinstance(event, dict):
             raise _corrupt(path, lineno, "not a JSON object")
+        yield path, lineno, event
+
+
+def _pending_rows(folder: Path) -> dict[str, dict]:
+    """Rows written ahead in events.jsonl and not discarded later, by point id (the last one wins)."""
+    pending: dict[str, dict] = {}
+    for path, lineno, event in _events(folder):
         kind = event.get("event")
         if kind == "point_pending":
             problem = _row_problem(event.get("row"))
@@ -114,6 +123,24 @@ def _pending_rows(folder: Path) -> dict[str, dict]:
             for pid in ids:
                 pending.pop(pid, None)
     return pending
+
+
+def _logged_batches(folder: Path, candidates: set[str]) -> list[dict]:
+    """An adaptive run's `adaptive_batch` events, checked: candidate ids, four finite motor angles each."""
+    logged = []
+    for path, lineno, event in _events(folder):
+        if event.get("event") != "adaptive_batch":
+            continue
+        ids, motors = event.get("points"), event.get("motors_deg")
+        ok = (isinstance(ids, list) and isinstance(motors, list) and len(ids) == len(motors)
+              and all(isinstance(i, str) and i in candidates for i in ids)
+              and all(isinstance(m, list) and len(m) == 4 and all(_finite(x) for x in m) for m in motors)
+              and _finite(event.get("estimated_s")))
+        if not ok:
+            raise _corrupt(path, lineno, "an adaptive_batch record without candidate point ids, their motors "
+                                         "and its planned time")
+        logged.append(event)
+    return logged
 
 
 def find_campaign_file(folder: Path, info: dict) -> Path:
@@ -179,6 +206,11 @@ def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
         check_campaign_for_rig(campaign, rig, path)
         check_devices(rig, folder / "dataset.json")
         plan = build_plan(campaign, rig)
+        logged: list[dict] = []
+        if campaign.sampling.mode == "adaptive":
+            candidates = candidate_plan(campaign, rig)
+            logged = _logged_batches(folder, {p.point_id for p in candidates.points})
+            plan = replace(plan, points=plan.points + tuple(logged_points(candidates, logged)))
         done = _rows(folder)
         done_ids = {r["point_id"] for r in done}
         unknown = done_ids - {p.point_id for p in plan.points}
@@ -204,7 +236,7 @@ def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
         resumes = resumes + [{"time_utc": utc_now(), "previous_status": status,
                               "measured_before": len(done), "forced": force and changed}]
         writer.update_manifest(status="running", resumes=resumes)
-        return Resumption(writer, campaign, path, rig, plan, done)
+        return Resumption(writer, campaign, path, rig, plan, done, logged)
     except BaseException:
         writer.close()
         raise

@@ -9,8 +9,10 @@ measured domain (`MeasuredDomain`).
 series of one incidence, so the interpolant follows them: within a measured θi, piecewise-linear over a
 Delaunay triangulation of the view directions in the projected (Nusselt) disk, (sin θo cos Δφ,
 sin θo |sin Δφ|), folded by the isotropic symmetry Δφ ↔ −Δφ; between two measured incidences, linear in
-θi. It interpolates ln f, because the retroreflective and specular peaks span decades (cf. the
-interpolation schemes reviewed by Vávra & Filip, and the log-space advice of Dupuy & Jakob 2018).
+θi, each of the two evaluated at the view that lies in the same place relative to its retroreflection and
+mirror points (`lobe_aligned`), so that the lobes are followed as they move with θi. It interpolates ln f,
+because the retroreflective and specular peaks span decades (cf. the interpolation schemes reviewed by
+Vávra & Filip, and the log-space advice of Dupuy & Jakob 2018).
 Its uncertainty combines, in quadrature: the neighbours' u (weighted like the values, i.e. as fully
 correlated, which bounds them); within an incidence, the leave-one-out error of the neighbouring
 measured points (each interpolated from its own neighbours alone: an upper bound, since removing a point
@@ -40,7 +42,7 @@ from rig.analysis.fit import UNUSABLE_FLAGS, choose_weighting, fit_dataset, usab
 from rig.analysis.prediction import Prediction
 from rig.data.dataset_reader import Dataset
 from rig.physics.brdf_models import get_model
-from rig.physics.geometry import sph_to_vec
+from rig.physics.geometry import disk_coordinates, sph_to_vec
 
 #: Measured θi closer than this (degrees) belong to one incidence (achieved angles scatter by ~0.01°).
 SAME_INCIDENCE_DEG = 0.5
@@ -56,13 +58,6 @@ LOG_FLOOR_REL = 1e-4
 
 def _as_arrays(*angles_deg: ArrayLike) -> tuple[np.ndarray, ...]:
     return tuple(np.broadcast_arrays(*(np.asarray(a, float) for a in angles_deg)))
-
-
-def disk_coordinates(theta_o_deg: np.ndarray, phi_o_deg: np.ndarray, phi_i_deg: np.ndarray) -> np.ndarray:
-    """(..., 2): the view in the projected disk relative to the incidence plane, folded to |sin Δφ|."""
-    t, dphi = np.radians(theta_o_deg), np.radians(np.asarray(phi_o_deg) - np.asarray(phi_i_deg))
-    s = np.sin(t)
-    return np.stack([s * np.cos(dphi), s * np.abs(np.sin(dphi))], axis=-1)
 
 
 @dataclass
@@ -125,6 +120,24 @@ def _loo_errors(mesh: Delaunay, log_f: np.ndarray) -> np.ndarray:
     return err
 
 
+def lobe_aligned(xy: np.ndarray, theta_from_deg: np.ndarray, theta_to_deg: float) -> np.ndarray:
+    """Disk points (M, 2) of a view at incidence θ_from moved to where the same view *relative to the lobes* lies at
+    incidence θ_to: the disk's x axis (the plane of incidence) is mapped piecewise-linearly so that the
+    retroreflection point +sin θ and the mirror point −sin θ go from θ_from's to θ_to's, ±1 stay, and each chord
+    x = const is scaled onto its image so that the disk's rim stays the rim. Interpolating between incidences at
+    these points follows the retro and specular lobes as they move with θi (a simple form of the displacement
+    interpolation Radiance's pabopto2bsdf uses between incidences, Ward, Kurt & Bonneel 2014)."""
+    s_from, s_to = np.sin(np.radians(theta_from_deg)), np.sin(np.radians(theta_to_deg))
+    x, y = xy[:, 0], xy[:, 1]
+    safe = np.maximum(s_from, 1e-9)
+    inner = x * s_to / safe
+    outer = np.sign(x) * (s_to + (np.abs(x) - s_from) * (1 - s_to) / np.maximum(1 - s_from, 1e-9))
+    x_new = np.where(s_from < 1e-9, x, np.where(np.abs(x) <= s_from, inner, outer))
+    chord_from, chord_to = np.sqrt(np.maximum(1 - x ** 2, 0.0)), np.sqrt(np.maximum(1 - x_new ** 2, 0.0))
+    y_new = np.where(chord_from > 1e-12, y * chord_to / np.maximum(chord_from, 1e-12), 0.0)
+    return np.stack([x_new, y_new], axis=1)
+
+
 class MeasuredDomain:
     """The measured incidences and, per incidence, the hull of its views in the projected disk."""
 
@@ -155,7 +168,8 @@ class MeasuredDomain:
         for end, (side, weight) in enumerate(((lo, 1 - w), (hi, w))):
             for k in np.unique(side):
                 rows = side == k
-                lf, ur, ins = self.incidences[int(k)].evaluate(xy[rows])
+                inc = self.incidences[int(k)]
+                lf, ur, ins = inc.evaluate(lobe_aligned(xy[rows], theta_i_deg[rows], inc.theta_i_deg))
                 ends[end, rows] = lf
                 u_rel[rows] += weight[rows] * ur
                 inside[rows] &= ins | (weight[rows] == 0)
@@ -167,8 +181,12 @@ class MeasuredDomain:
         return self.evaluate(theta_i_deg, xy)[2]
 
 
-def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS) -> MeasuredDomain:
-    """Group a dataset's usable rows by incidence and triangulate each group's views."""
+def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS,
+                    loo_cache: dict[bytes, np.ndarray] | None = None) -> MeasuredDomain:
+    """Group a dataset's usable rows by incidence and triangulate each group's views.
+
+    `loo_cache`: leave-one-out errors by incidence content, kept by a caller that rebuilds the domain as rows
+    arrive (adaptive sampling adds one incidence's views at a time; the others need not be redone)."""
     keep = usable_rows(ds, exclude_flags) & np.isfinite(ds["brdf_per_sr"])
     theta_i, f = ds["theta_i_deg"][keep], ds["brdf_per_sr"][keep]
     u = ds["u_brdf_per_sr"][keep] if "u_brdf_per_sr" in ds.columns else np.full(f.shape, np.nan)
@@ -193,7 +211,12 @@ def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS
             mesh = Delaunay(xy[rows_a])
         except Exception:          # collinear views (a single plane of incidence): no 2-D interpolant
             continue
-        loo = _loo_errors(mesh, log_f[rows_a])
+        key = xy[rows_a].tobytes() + log_f[rows_a].tobytes()
+        loo = loo_cache.get(key) if loo_cache is not None else None
+        if loo is None:
+            loo = _loo_errors(mesh, log_f[rows_a])
+            if loo_cache is not None:
+                loo_cache[key] = loo
         incidences.append(_Incidence(float(np.mean(theta_i[rows_a])), mesh, log_f[rows_a], u_rel[rows_a],
                                      loo))
     return MeasuredDomain(incidences)

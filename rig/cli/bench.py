@@ -10,6 +10,7 @@ import rig
 from rig.config.campaign import load_campaign
 from rig.config.files import ConfigFileError
 from rig.core.exits import EXIT_OK, fail
+from rig.session import sampling_bench
 from rig.session.bench import SETTINGS, format_table, machine, plot, run_settings
 
 #: The paper's road marking RM1, in the campaigns/ folder beside the rig package (the checkout).
@@ -34,6 +35,35 @@ def cmd_error_vs_time(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_sampling(args: argparse.Namespace) -> int:
+    """Every sampling strategy on every chosen sample: table, PNG, JSON."""
+    path = Path(args.campaign)
+    try:
+        campaign = load_campaign(path)
+    except ConfigFileError as exc:
+        return fail(str(exc))
+    unknown = [s for s in args.samples if s not in sampling_bench.SAMPLES]
+    if unknown:
+        return fail(f"unknown sample {unknown[0]!r}; choose from {', '.join(sampling_bench.SAMPLES)}")
+    print(f"machine : {machine()}\ncampaign: {path.name} (the candidate domain of the adaptive runs); simulated rig, "
+          f"seed {args.seed}; budgets {', '.join(f'{f:g}' for f in args.budgets)} × the baseline's rig time",
+          flush=True)
+    results, verdicts = [], []
+    for sample in args.samples:
+        mine = sampling_bench.bench_sample(campaign, sample, args.seed, args.budgets)
+        results += mine
+        verdicts.append(sampling_bench.verdict(mine))
+        print(sampling_bench.format_results(mine) + "\n" + verdicts[-1], flush=True)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    sampling_bench.plot(results, out / "sampling.png")
+    (out / "sampling.json").write_text(json.dumps({"machine": machine(), "campaign": str(path), "seed": args.seed,
+                                                   "results": [vars(r) for r in results], "verdicts": verdicts},
+                                                  indent=2))
+    print("\n".join(["", sampling_bench.format_results(results), *verdicts, f"plot and figures in {out}"]))
+    return EXIT_OK
+
+
 def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `rig bench error-vs-time [CAMPAIGN] [--out DIR]`."""
     bench = subparsers.add_parser("bench", help="benchmarks on the simulated rig")
@@ -42,3 +72,12 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
     evt.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN))
     evt.add_argument("--out", default="runs/bench-error-vs-time", help="folder for the PNG and JSON")
     evt.set_defaults(func=cmd_error_vs_time)
+    smp = which.add_parser("sampling", help="validation error of the dataset against rig time, per sampling strategy")
+    smp.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN))
+    smp.add_argument("--samples", nargs="+", default=list(sampling_bench.SAMPLES), metavar="SAMPLE",
+                     help=f"simulated samples (default all: {', '.join(sampling_bench.SAMPLES)})")
+    smp.add_argument("--budgets", nargs="+", type=float, default=list(sampling_bench.BUDGET_FRACTIONS),
+                     help="adaptive budgets as fractions of the baseline's rig time after warm-up")
+    smp.add_argument("--seed", type=int, default=1, help="simulated rig seed (the same for every strategy)")
+    smp.add_argument("--out", default="runs/bench-sampling", help="folder for the PNG and JSON")
+    smp.set_defaults(func=cmd_sampling)

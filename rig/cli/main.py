@@ -14,8 +14,8 @@ from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.acquisition.execute import RunOutcome, execute, manifest_for
 from rig.acquisition.progress import ProgressBar, format_duration
 from rig.acquisition.resume import prepare_resume
-from rig.cli import bench, calibrate, export, fit, import_alta, plot, predict, sim
-from rig.config.campaign import Campaign, check_campaign_for_rig, load_campaign
+from rig.cli import bench, calibrate, export, fit, import_alta, monitor, plot, predict, report, sim
+from rig.config.campaign import Campaign, CampaignError, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
@@ -26,12 +26,34 @@ from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
 from rig.drivers.interfaces import RigDevices
 from rig.drivers.registry import installed_drivers
+from rig.planning.candidates import candidate_plan
 from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparison
 from rig.planning.points import Plan, describe_reason
+from rig.session.adaptive_sampler import planned_time_s, sampler_for
 from rig.session.connect import open_campaign_rig, open_rig
 
 
+def print_adaptive_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
+    """An adaptive campaign's plan: the candidate domain, the first pass and when the batches stop."""
+    spec, candidates = campaign.sampling, candidate_plan(campaign, rig)
+    print(f"campaign {campaign.name}: adaptive sampling over {len(candidates.points)} candidate points at "
+          f"{len(candidates.series)} incidences ({len(candidates.skipped)} more cannot be measured)")
+    first = Counter((p.theta_i_deg, p.phi_i_deg) for p in plan.points)
+    print(f"  first pass: {len(plan.points)} points, planned rig time {format_duration(planned_time_s(plan, rig))} "
+          f"after warm-up ({len(spec.mandatory)} mandatory pairs)")
+    for (theta_i, phi_i), n in sorted(first.items()):
+        print(f"    ({theta_i:5.1f}°, {phi_i:5.1f}°)  {n:4d}")
+    stops = ([f"the planned rig time after warm-up reaches {format_duration(spec.budget_rig_time_s)}"]
+             if spec.budget_rig_time_s is not None else []) + (
+        [f"u/(f+τ) ≤ {spec.target_u_rel:g} at every candidate"] if spec.target_u_rel is not None else [])
+    print(f"  then batches of up to {spec.batch_points} views at one incidence, where the interpolant is least "
+          f"certain per second of rig time, until {' or '.join(stops)}")
+
+
 def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
+    if campaign.sampling.mode == "adaptive":
+        print_adaptive_plan(plan, campaign, rig)
+        return
     print(f"campaign {campaign.name}: {len(plan.series)} incidence series, {plan.n_planned} planned points")
     print(f"  to measure: {len(plan.points)}")
     print(f"  skipped:    {len(plan.skipped)}")
@@ -67,7 +89,10 @@ def _load(args: argparse.Namespace) -> tuple[Campaign, RigConfig, Plan]:
     campaign = load_campaign(args.campaign)
     rig = _rig_config(args)
     check_campaign_for_rig(campaign, rig, args.campaign)
-    return campaign, rig, build_plan(campaign, rig)
+    try:
+        return campaign, rig, build_plan(campaign, rig)
+    except CampaignError as exc:            # a mandatory pair of an adaptive campaign the rig cannot measure
+        raise CampaignError(f"{args.campaign}: {exc}") from None
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
@@ -129,7 +154,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
           f"{left} to measure", file=sys.stderr)
     outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume),
                       open_campaign_rig(r.campaign, r.rig), writer=r.writer, done_rows=r.done_rows,
-                      progress=None if args.quiet else ProgressBar(), handle_signals=True)
+                      progress=None if args.quiet else ProgressBar(), handle_signals=True,
+                      source=sampler_for(r.campaign, r.rig, r.plan, r.logged_batches))
     return _report_outcome(outcome, len(r.plan.skipped))
 
 
@@ -192,7 +218,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"rig {__version__}: {campaign.name} on {where} → {out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
     outcome = execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig), writer=writer,
-                      progress=None if args.quiet else ProgressBar(), handle_signals=True)
+                      progress=None if args.quiet else ProgressBar(), handle_signals=True,
+                      source=sampler_for(campaign, rig, plan))
     return _report_outcome(outcome, len(plan.skipped))
 
 
@@ -217,7 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
     p_dev.add_argument("--list", action="store_true",
                        help="list every installed driver (entry-point group rig.drivers): name, role, class, package")
     p_dev.set_defaults(func=cmd_devices)
-    for module in (fit, import_alta, export, predict, plot, bench, sim, calibrate):
+    for module in (fit, import_alta, export, predict, plot, report, monitor, bench, sim, calibrate):
         module.add_subcommand(sub)
     return parser
 

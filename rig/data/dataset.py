@@ -11,7 +11,7 @@ import errno
 import json
 import os
 import shutil
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -312,14 +312,25 @@ class DatasetWriter:
         self._guarded("skipped.csv", write)
 
     def append_row(self, row: Mapping[str, Any]) -> None:
-        missing = [c for c in BRDF_COLUMNS if c not in row]
-        if missing:
-            raise ValueError(f"row for point {row.get('point_id')} lacks {', '.join(missing)}")
-        line = csv_line(row[c] for c in BRDF_COLUMNS)
-        if self._guarded("brdf.csv", lambda: _append(self._rows, line)):
-            self.n_rows += 1
+        self.append_rows([row])
+
+    def append_rows(self, rows: Sequence[Mapping[str, Any]]) -> None:
+        """Append rows to brdf.csv in one write and one fsync: all of them are on disk when this returns, or
+        none (a failed write is truncated away, and its rows count as unwritten once the disk is full).
+
+        One fsync per batch, not per row: the rows that an E⊥ reading brackets arrive together, and an
+        fsync costs milliseconds (it was the largest share of the pipeline's time per point)."""
+        for row in rows:
+            missing = [c for c in BRDF_COLUMNS if c not in row]
+            if missing:
+                raise ValueError(f"row for point {row.get('point_id')} lacks {', '.join(missing)}")
+        if not rows:
+            return
+        text = "".join(csv_line(row[c] for c in BRDF_COLUMNS) for row in rows)
+        if self._guarded("brdf.csv", lambda: _append(self._rows, text)):
+            self.n_rows += len(rows)
         else:
-            self.unwritten_rows += 1
+            self.unwritten_rows += len(rows)
 
     def event(self, kind: str, **fields: Any) -> None:
         record = {"time_utc": utc_now(), "event": kind, **fields}

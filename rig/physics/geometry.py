@@ -291,3 +291,11 @@ def centre_pattern(theta: np.ndarray, phi: np.ndarray, centre: np.ndarray) -> np
 def mirror_direction(w: np.ndarray) -> np.ndarray:
     """Specular direction of w about the normal z: (θ, φ + 180°)."""
     return np.asarray(w, float) * np.array([-1.0, -1.0, 1.0])
+
+
+def disk_coordinates(theta_o_deg: np.ndarray, phi_o_deg: np.ndarray, phi_i_deg: np.ndarray | float) -> np.ndarray:
+    """(..., 2): the view in the projected (Nusselt) disk relative to the incidence plane, folded to |sin Δφ|:
+    the coordinates in which an isotropic sample's views are interpolated and spread."""
+    t, dphi = np.radians(theta_o_deg), np.radians(np.asarray(phi_o_deg) - np.asarray(phi_i_deg))
+    s = np.sin(t)
+    return np.stack([s * np.cos(dphi), s * np.abs(np.sin(dphi))], axis=-1)

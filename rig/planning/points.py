@@ -7,8 +7,9 @@ it, the engine measures it and the dataset records its skipped points.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 #: The four motor angles of a position, degrees: stage_vertical, stage_normal, arm_azimuth, arm_polar.
 Motors = tuple[float, float, float, float]
@@ -77,3 +78,12 @@ class Plan:
 
     def skipped_by_reason(self) -> dict[str, int]:
         return dict(Counter(s.reason for s in self.skipped))
+
+
+class PointSource(Protocol):
+    """Where a run gets points beyond its plan (an adaptive campaign: rig.session.adaptive_sampler)."""
+
+    def next_batch(self, rows: Sequence[Mapping[str, object]], event: Callable[..., None]) -> Sequence[PlannedPoint]:
+        """More points to measure given the rows so far (all final), to be measured after the plan's points in
+        plan order; none when the run is done. `event(kind, **fields)` logs to the run's events.jsonl."""
+        ...

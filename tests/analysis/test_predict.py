@@ -180,3 +180,18 @@ def test_model_predictor_from_a_dataset_fits_when_asked():
     pred = model_predictor(ds, model="lambert")
     assert "lambert" in pred.method
     assert float(pred.predict(30, 0, 40, 180).brdf_per_sr) == pytest.approx(0.6 / np.pi, rel=1e-6)
+
+
+def test_between_incidences_the_interpolant_follows_the_lobes():
+    """lobe_aligned sends the retroreflection and mirror points of one incidence to another's, keeps the rim on the
+    rim and the normal on the normal."""
+    from rig.analysis.predict import lobe_aligned
+
+    xy = np.array([[-np.sin(np.radians(40)), 0.0], [np.sin(np.radians(40)), 0.0], [0.0, 0.0], [0.0, 1.0],
+                   [np.cos(np.radians(30)), 0.5]])
+    out = lobe_aligned(xy, np.full(5, 40.0), 60.0)
+    s60 = np.sin(np.radians(60))
+    assert out[0] == pytest.approx([-s60, 0.0]) and out[1] == pytest.approx([s60, 0.0])
+    assert out[2] == pytest.approx([0.0, 0.0]) and out[3] == pytest.approx([0.0, 1.0])
+    assert np.hypot(*out[4]) == pytest.approx(1.0)
+    assert lobe_aligned(xy, np.full(5, 40.0), 40.0) == pytest.approx(xy)

@@ -48,6 +48,21 @@ def test_rows_are_on_disk_before_close(tmp_path):
     w.close()
 
 
+def test_a_batch_of_rows_is_one_write_and_one_fsync_all_or_nothing(tmp_path, monkeypatch):
+    w = DatasetWriter(tmp_path / "ds", {})
+    syncs = []
+    monkeypatch.setattr(os, "fsync", lambda fd: syncs.append(fd))
+    w.append_rows([row("00-000"), row("00-001"), row("00-002")])
+    assert len(syncs) == 1 and w.n_rows == 3
+    with pytest.raises(ValueError, match="non-finite"):
+        w.append_rows([row("00-003"), row("00-004", brdf_per_sr=float("inf"))])
+    w.append_rows([])
+    assert len(syncs) == 1 and w.n_rows == 3
+    with open(tmp_path / "ds" / "brdf.csv", newline="") as fh:
+        assert [r["point_id"] for r in csv.DictReader(fh)] == ["00-000", "00-001", "00-002"]
+    w.close()
+
+
 def test_manifest_atomic_and_complete(tmp_path):
     w = DatasetWriter(tmp_path / "ds", {"campaign": {"name": "t"}})
     m = json.loads((tmp_path / "ds" / "dataset.json").read_text())

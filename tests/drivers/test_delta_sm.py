@@ -114,6 +114,22 @@ def test_the_keep_alive_feeds_the_watchdog_during_a_long_sleep(scripted, clock):
     assert times == pytest.approx([0.25, 0.5, 0.75, 1.0, 1.25, 1.5])
 
 
+def test_a_feed_right_after_a_reply_is_skipped_but_never_two_in_a_row(scripted, clock):
+    measure, feed = ("MEASure:CURrent?", "4.1700"), ("SYSTem:COMmunicate:WATchdog?", "750")
+    with scripted([measure, feed, measure, measure, feed]) as (lamp, replay):
+        clock.sleep(0.2)
+        lamp.measure_current_a()               # at 0.2 s: restarts the watchdog, so the feed due at 0.25 s is
+        clock.sleep(0.3)                       # skipped; the one at 0.5 s is sent
+        clock.sleep(0.1)
+        lamp.measure_current_a()               # at 0.6 s: the feed at 0.75 s is skipped ...
+        clock.sleep(0.2)
+        lamp.measure_current_a()               # ... and the one at 1.0 s, 0.2 s after this reply, is not
+        clock.sleep(0.2)
+        lamp.close()
+    times = [t for line, t in replay.written if line == b"SYSTem:COMmunicate:WATchdog?\n"][1:]
+    assert times == pytest.approx([0.5, 1.0])
+
+
 def test_an_expired_watchdog_is_reported_and_re_armed_by_the_feed(scripted, clock, events):
     with scripted([("SYSTem:COMmunicate:WATchdog?", "0"),
                    ("SYSTem:COMmunicate:WATchdog SET,1000", None), OK]) as (lamp, _):
@@ -135,7 +151,7 @@ def test_switching_off_ramps_down_then_off_then_verifies(scripted, clock):
     ramp = [("OUTPut?", "1"), ("SOURce:CURrent?", "4.1700")]
     for value in ("3.1275", "2.0850", "1.0425", "0.0000"):
         ramp += [(f"SOURce:CURrent {value}", None), OK]
-    ramp.insert(6, ("SYSTem:COMmunicate:WATchdog?", "750"))        # fed at 0.25 s, between two steps
+    # no feed at 0.25 s: the supply answered the error query after the step at 0.2 s (that restarted the watchdog)
     off = [("OUTPut OFF", None), OK, ("OUTPut?", "0"), ("MEASure:CURrent?", "0.0000")]
     with scripted(ramp + off, ramp_s=0.4) as (lamp, replay):
         lamp.set_output(False)
@@ -235,7 +251,7 @@ def test_current_is_ramped_in_steps_on_the_clock_with_an_error_read_after_each(s
     steps = [("SOURce:CURrent?", "1.0000")]        # the ramp starts from the supply's present setpoint
     for value in ("1.5000", "2.0000", "2.5000", "3.0000"):
         steps += [(f"SOURce:CURrent {value}", None), OK]
-    steps.insert(5, ("SYSTem:COMmunicate:WATchdog?", "750"))       # the keep-alive, due at 0.25 s
+    # the keep-alive due at 0.25 s is skipped: the error query after the step at 0.2 s restarted the watchdog
     with scripted(steps, ramp_step_s=0.1) as (lamp, replay):
         lamp.set_current(3.0, ramp_s=0.4)
         lamp.close()

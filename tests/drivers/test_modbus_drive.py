@@ -132,6 +132,18 @@ def test_a_move_is_fc16_then_fc3_never_fc23(expected_protocol, clock):
     assert replay.written[2][1] == pytest.approx(predicted, abs=1e-5)       # the poll came at the predicted time
 
 
+def test_the_prediction_is_of_the_move_in_whole_steps_so_one_poll_does(expected_protocol, clock):
+    """999.6° goes out as 1000 steps: the drive runs 0.4 step further than asked, and the poll waits for that
+    (a prediction for 999.6° would poll too early and need a second poll, a poll interval later)."""
+    exchanges = [(pdu(POSITION_READ[0]), h("03 04 0000 0000")), (pdu(DIRECT_MOVE[0]), pdu(DIRECT_MOVE[1])),
+                 (pdu(STATUS_READ[0]), h("03 04 0000 4020"))]
+    with expected_protocol(exchanges, now=clock.now) as replay:
+        _, axis = replayed(replay, clock)
+        axis.start_move(999.6)
+        axis.wait()
+    assert replay.written[2][1] == pytest.approx(axis.move_time_s(0.0, 1000.0), abs=1e-5)
+
+
 def test_stop_home_and_alarm_reset_are_pulses_of_the_auto_off_input(expected_protocol, clock):
     exchanges = [(h("10 0078 0002 04 0000 0020"), h("10 0078 0002")),       # STOP
                  (h("10 0078 0002 04 0000 0080"), h("10 0078 0002")),       # ALM-RST

@@ -222,7 +222,7 @@ def test_peer_stops_cleanly_and_idempotently(no_leaks):
 
 def test_one_point_of_four_axes_on_two_links(no_leaks):
     """start + wait + read-back of 4 axes on two links, point after point (the protocol's wall time per point
-    is a benchmark: benchmarks/paper_campaign.py)."""
+    is a benchmark: benchmarks/per_point.py)."""
     world = make_world()
     with OrientalAZPeer(world, ARM) as arm_peer, OrientalAZPeer(world, STAGE, device_ids=(3, 4)) as stage_peer:
         links, axes = [], []

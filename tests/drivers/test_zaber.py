@@ -89,9 +89,10 @@ def test_connect_reads_the_microstep_size_and_sets_speed_and_acceleration(expect
     assert ax.identity() == "Zaber device 1 axis 1 on /dev/ttyUSB0" and events == []
 
 
-def test_move_sleeps_the_predicted_time_polls_idle_and_reads_warnings_and_position(expected_protocol, clock, events):
+def test_move_sleeps_the_predicted_time_polls_idle_and_reads_the_position(expected_protocol, clock, events):
+    """The IDLE reply's flag field is `--`: no flag at all, so no `warnings` request follows it."""
     script = CONNECT + [(GET_POS, b"@01 1 OK IDLE -- 0\r\n"), (MOVE_30, BUSY), (POLL, IDLE),
-                        (WARNINGS, NO_WARNINGS), (GET_POS, b"@01 1 OK IDLE -- 127996\r\n")]
+                        (GET_POS, b"@01 1 OK IDLE -- 127996\r\n")]
     with expected_protocol(script, now=clock.now) as replay:
         ax = axis(replay.open_port, clock, events)
         ax.start_move(30.0)
@@ -99,18 +100,18 @@ def test_move_sleeps_the_predicted_time_polls_idle_and_reads_warnings_and_positi
         assert ax.position_deg() == pytest.approx(127996 / PER_DEG)
     predicted = move_time_s(30.0, SPEED, ACCEL) + SETTLE
     assert ax.move_time_s(0.0, 30.0) == pytest.approx(predicted)
-    assert replay.written[-3][1] == pytest.approx(predicted, abs=1e-5)      # one poll, after the prediction
+    assert replay.written[-2][1] == pytest.approx(predicted, abs=1e-5)      # one poll, after the prediction
     assert events == []
 
 
 def test_a_busy_poll_is_followed_by_another_after_poll_s(expected_protocol, clock, events):
     script = CONNECT + [(GET_POS, b"@01 1 OK IDLE -- 128000\r\n"), (b"/1 1 move abs 0:01\n", BUSY),
-                        (POLL, BUSY), (POLL, IDLE), (WARNINGS, NO_WARNINGS)]
+                        (POLL, BUSY), (POLL, IDLE)]
     with expected_protocol(script, now=clock.now) as replay:
         ax = axis(replay.open_port, clock, events)
         ax.start_move(0.0)
         ax.wait()
-    first, second = replay.written[-3][1], replay.written[-2][1]
+    first, second = replay.written[-2][1], replay.written[-1][1]
     assert second - first == pytest.approx(ZaberAxis.poll_s)
 
 
@@ -170,7 +171,7 @@ def test_notices_are_events_not_errors(expected_protocol, clock, events):
 def test_an_axis_without_reference_refuses_moves_until_homed(expected_protocol, clock, events):
     script = CONNECT_UNHOMED + [
         (b"/1 1 home:B5\n", line("01 1 OK BUSY WR 0")), (POLL, b"@01 1 OK BUSY WR 0\r\n"), (POLL, IDLE),
-        (WARNINGS, NO_WARNINGS), (MOVE_30, BUSY)]
+        (MOVE_30, BUSY)]
     with expected_protocol(script) as replay:
         ax = axis(replay.open_port, clock, events)
         assert not ax.homed and events == []            # WR at power-up is expected, not an error
@@ -272,7 +273,7 @@ def test_from_rig_addresses_two_devices_and_homes_the_unreferenced(expected_prot
               (b"/2 1 set maxspeed 104858:40\n", b"@02 1 OK IDLE -- 0\r\n"),
               (b"/2 1 set accel 21:76\n", b"@02 1 OK IDLE -- 0\r\n"),
               (b"/2 1 warnings:F4\n", b"@02 1 OK IDLE -- 00\r\n")]
-    homing = [(b"/1 1 home:B5\n", BUSY), (POLL, IDLE), (WARNINGS, NO_WARNINGS)]
+    homing = [(b"/1 1 home:B5\n", BUSY), (POLL, IDLE)]
     cfg = AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30, settle_s=SETTLE)
     with expected_protocol(CONNECT_UNHOMED + second + homing) as replay:
         arm = ZaberChain.from_rig(clock=clock, settings={"arm_azimuth": cfg, "arm_polar": cfg}, name="arm",

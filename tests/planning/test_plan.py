@@ -10,8 +10,9 @@ from rig.config.rigfile import AxesConfig, AxisConfig, RigConfig
 from rig.physics import geometry as geo
 from rig.physics.geometry import AxisLimits
 from rig.planning.ordering import travel_time_s
-from rig.planning.plan import build_plan, estimate_rig_time_s, viewing_directions
+from rig.planning.plan import build_plan, estimate_rig_time_s
 from rig.planning.points import SKIP_REASONS
+from rig.planning.table import viewing_directions
 
 TABLE2_THETA = [3.3, 10.7, 21.3, 34.8, 50.8, 69.3]
 TABLE2_PHI = [25.7, 51.4, 77.1, 102.9, 128.6, 154.3, 180, 205.7, 231.4, 257.1, 282.9, 308.6, 334.3, 360]

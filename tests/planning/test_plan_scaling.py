@@ -2,8 +2,9 @@
 
 Not timed: the tests count operations, so they fail on a super-linear algorithm whatever the
 machine: the move times the ordering evaluates (an n × n cost matrix over all series or views is
-quadratic) and the Python lines run in rig.planning.plan and rig.planning.ordering (a scan of every point per
-series is quadratic). Doubling the size may at most about double the count: count(2N) ≤ 2.2 × count(N)
+quadratic) and the Python lines run in rig.planning.plan, rig.planning.table and rig.planning.ordering (a scan
+of every point per series is quadratic). Doubling the size may at most about double the count:
+count(2N) ≤ 2.2 × count(N)
 (a linear algorithm gives 2.0; before the fix the cost matrices and the angles between views grew
 4×, the lines 2.5×).
 """
@@ -19,7 +20,7 @@ import pytest
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.physics import geometry as geo
-from rig.planning import ordering, plan
+from rig.planning import ordering, plan, table
 from rig.planning.ordering import (
     BLOCK_NODES,
     START_DEG,
@@ -56,9 +57,9 @@ def moves_evaluated(monkeypatch, fn: Callable[..., Any], *args: Any) -> tuple[in
 
 
 def lines_run(fn: Callable[..., Any], *args: Any) -> tuple[int, Any]:
-    """Number of Python lines run in rig/planning/plan.py and rig/planning/ordering.py in fn(*args), and what it
+    """Number of Python lines run in rig/planning/plan.py, table.py and ordering.py in fn(*args), and what it
     returns."""
-    files = {str(Path(module.__file__)) for module in (plan, ordering)}
+    files = {str(Path(module.__file__)) for module in (plan, table, ordering)}
     count = 0
 
     def local(frame, event, arg):
@@ -169,7 +170,7 @@ def quadratic_first_of_repeats(dirs: np.ndarray) -> list[int]:
     """The rule by definition: keep a direction unless an earlier kept one is within SAME_DIRECTION_RAD."""
     keep: list[int] = []
     for k, d in enumerate(dirs):
-        if not keep or np.all(geo.angle_between(dirs[keep], d) > plan.SAME_DIRECTION_RAD):
+        if not keep or np.all(geo.angle_between(dirs[keep], d) > table.SAME_DIRECTION_RAD):
             keep.append(k)
     return keep
 
@@ -193,12 +194,12 @@ def test_repeated_views_removed_by_the_rule_without_measuring_every_pair(monkeyp
 
         with monkeypatch.context() as m:
             m.setattr(geo, "angle_between", counted)
-            kept = plan._first_of_repeats(dirs)
+            kept = table._first_of_repeats(dirs)
         counts.append(count)
         assert list(kept) == list(range(n))                          # the originals, in order
     assert counts[1] <= LINEAR * counts[0], counts
     small = np.concatenate([dirs[:300], dirs[-50:], dirs[n:n + 40]])
-    assert list(plan._first_of_repeats(small)) == quadratic_first_of_repeats(small)
+    assert list(table._first_of_repeats(small)) == quadratic_first_of_repeats(small)
 
 
 def test_plan_of_more_series_than_a_block_keeps_every_point_and_beats_table_order():

@@ -1,0 +1,123 @@
+"""Benchmark: the full-frame HDR merge against a copy of its frames, and a campaign with images saved.
+
+Wall time depends on the machine and its load, so each figure is printed with a baseline
+measured in the same run (issue 17's targets are printed next to them; the script reports,
+it does not fail):
+
+- merge: `merge_exposures` (the rig's) and `merge_exposures_reference` (its float64
+  definition) on 3 exposures of a full simulated frame, against a plain copy of the same
+  frames; best of --repeat. Targets: ≤ 20 ms and ≤ 60× the copy.
+- campaign: campaigns/quick.yaml run with `capture.save_images: true` and without, each
+  into a temporary folder through `rig run`. Target: ≤ 3× the wall time without images.
+
+    python benchmarks/merge_speed.py [--repeat N] [--skip-campaign]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from rig.cli.main import main as rig_main  # noqa: E402
+from rig.config.rigfile import RigConfig  # noqa: E402
+from rig.physics.hdr import merge_exposures, merge_exposures_reference  # noqa: E402
+from rig.session.bench import machine  # noqa: E402
+
+EXPOSURES_S = (0.001, 0.004, 0.016)
+MERGE_TARGET_S = 20e-3
+MERGE_TARGET_COPIES = 60.0
+IMAGES_TARGET_RATIO = 3.0
+CAMPAIGN = ROOT / "campaigns" / "quick.yaml"
+
+
+def best_of(fn: Callable[[], object], repeat: int) -> float:
+    """Shortest wall time (s) of `repeat` calls: the least disturbed by other processes."""
+    walls = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        walls.append(time.perf_counter() - start)
+    return min(walls)
+
+
+def frames(cfg: RigConfig) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Raw frames and darks (1, H, W) of a full frame, uint16: a log-normal scene over 4 decades, so that
+    the bracket has saturated and clipped pixels, EMVA 1288 noise as the simulated sensor draws it."""
+    cam = cfg.camera
+    rng = np.random.default_rng(0)
+    shape = (cam.height_px, cam.width_px)
+    rate_e_s = rng.lognormal(np.log(3e5), 2.0, shape)
+
+    def expose(rate: np.ndarray | float, t: float) -> np.ndarray:
+        electrons = rng.poisson((rate + cfg.simulation.dark_current_e_s) * t) + rng.normal(0.0, cam.read_noise_e, shape)
+        dn = np.rint(cam.black_level_dn + cam.gain_dn_per_e * electrons)
+        return np.clip(dn, 0, 2 ** cam.bit_depth - 1).astype(np.uint16)[None]
+    return [expose(rate_e_s, t) for t in EXPOSURES_S], [expose(0.0, t) for t in EXPOSURES_S]
+
+
+def merge_figures(repeat: int) -> None:
+    cfg = RigConfig()
+    raw, darks = frames(cfg)
+    sensor = cfg.camera.sensor_info()
+    copy = best_of(lambda: [f.copy() for f in raw], repeat)
+    merge_exposures(raw, darks, EXPOSURES_S, sensor)                  # warm-up: the histogram's import
+    fast = best_of(lambda: merge_exposures(raw, darks, EXPOSURES_S, sensor), repeat)
+    reference = best_of(lambda: merge_exposures_reference(raw, darks, EXPOSURES_S, sensor), max(repeat // 4, 2))
+    print(f"merge of {len(raw)} exposures of {cfg.camera.width_px}×{cfg.camera.height_px} (best of {repeat}):")
+    print(f"  copy of the frames       {copy * 1e3:8.2f} ms")
+    print(f"  reference merge          {reference * 1e3:8.2f} ms   {reference / fast:6.1f}× the fast merge")
+    print(f"  fast merge               {fast * 1e3:8.2f} ms   {fast / copy:6.1f}× the copy   "
+          f"targets ≤ {MERGE_TARGET_S * 1e3:.0f} ms, ≤ {MERGE_TARGET_COPIES:.0f}× the copy"
+          f"{'' if fast <= MERGE_TARGET_S and fast / copy <= MERGE_TARGET_COPIES else '  (missed)'}")
+
+
+def campaign_wall(save_images: bool, folder: Path) -> float:
+    """Wall time (s) of `rig run` on the quick campaign with save_images set as asked."""
+    campaign = yaml.safe_load(CAMPAIGN.read_text())
+    campaign.setdefault("capture", {})["save_images"] = save_images
+    path = folder / f"quick_images_{save_images}.yaml"
+    path.write_text(yaml.safe_dump(campaign))
+    start = time.perf_counter()
+    code = rig_main(["run", str(path), "--out", str(folder / f"run_{save_images}"), "--quiet"])
+    wall = time.perf_counter() - start
+    if code != 0:
+        raise SystemExit(f"rig run exited with {code}")
+    return wall
+
+
+def campaign_figures() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        without = campaign_wall(False, Path(tmp))
+        with_images = campaign_wall(True, Path(tmp))
+        n_images = len(list((Path(tmp) / "run_True" / "images").glob("*.exr")))
+    ratio = with_images / without
+    print(f"quick campaign ({n_images} images):")
+    print(f"  without images           {without:8.2f} s")
+    print(f"  with images saved        {with_images:8.2f} s   {ratio:6.2f}× without   "
+          f"target ≤ {IMAGES_TARGET_RATIO:.0f}×{'' if ratio <= IMAGES_TARGET_RATIO else '  (missed)'}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=20, help="runs per merge figure; the best is reported")
+    ap.add_argument("--skip-campaign", action="store_true", help="only the merge figures")
+    args = ap.parse_args()
+    print(f"machine : {machine()}")
+    merge_figures(args.repeat)
+    if not args.skip_campaign:
+        campaign_figures()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""Adaptive sampling: the next batch of an adaptive campaign, where the dataset is least certain per second.
+
+After the first pass (rig.planning.candidates), each batch is `batch_points` views at one incidence (a series:
+the stage moves once, E⊥ is read once). For every candidate incidence the dataset's interpolant
+(rig.analysis.predict.InterpolatingPredictor, the same predictor `rig predict` and the validation metric use)
+gives each unmeasured candidate view its relative uncertainty u/(f + τ) (τ as in rig.analysis.validation; a
+view where the interpolant extrapolates counts as `EXTRAPOLATED_U_REL`). The gain of a view is that squared
+(the variance it removes, in the log-relative units of the error metric); the incidence's batch is its views
+of largest gain, each taken view damping the gain of candidates within `SPREAD_RADIUS` of it in the projected
+disk so that a batch spreads over a lobe instead of piling onto one node. The batch chosen is the one of
+largest gain per second of rig time: the moves from where the axes stand through the batch in travel order
+(rig.planning.ordering: the stage move to another incidence is what makes one expensive), a capture per point
+and an E⊥ reading per batch. This is the "uncertainty per cost" criterion the planning literature suggests
+(Vávra & Filip 2017 adapt slices by error; none of the prior work prices the instrument's travel).
+
+Gains and scores are compared in bins of `SCORE_BIN_LOG2` (a factor of 2^0.25), ties going to the lower series
+and view: a point measured again after a resume differs from its first measurement by its noise, and that
+must not change which points are chosen next (a resumed run ends with the same points as an uninterrupted one).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rig.analysis.predict import InterpolatingPredictor, measured_domain
+from rig.analysis.validation import TAU_REL
+from rig.config.rigfile import AxesConfig
+from rig.config.zones import ForbiddenZone
+from rig.data.dataset_reader import Dataset
+from rig.physics import geometry as geo
+from rig.planning.ordering import order_plan, path_time_s
+from rig.planning.points import Motors, Plan, PlannedPoint
+
+#: u/(f + τ) of a candidate the interpolant can only extrapolate to (outside the measured hull or θi range).
+EXTRAPOLATED_U_REL = 0.3
+#: A taken view damps the gain of candidates within this distance in the projected disk by (d/r)².
+SPREAD_RADIUS = 0.03
+#: Scores and gains are compared in bins of this many octaves.
+SCORE_BIN_LOG2 = 0.25
+
+
+@dataclass(frozen=True)
+class Batch:
+    """The next points to measure and why: their series, the planned rig time, the sum of their gains, the
+    score (gain per second), and the largest u/(f + τ) over all unmeasured candidates when it was chosen."""
+
+    points: tuple[PlannedPoint, ...]
+    series: int
+    estimated_s: float
+    gain: float
+    score_per_s: float
+    max_u_rel: float
+
+
+def rows_dataset(rows: Sequence[Mapping[str, object]], planned: Mapping[str, PlannedPoint]) -> Dataset:
+    """brdf.csv rows as written by the run (numbers) or read back on a resume (text) as a Dataset in memory, at
+    their *planned* angles: the read-back scatters by the axes' resolution, and a choice must not depend on it
+    (nor may a candidate drift in and out of the measured views' hull with it)."""
+    def number(value: object) -> float:
+        return float(value) if value not in ("", None) else float("nan")      # type: ignore[arg-type]
+
+    points = [planned[str(r["point_id"])] for r in rows]
+    columns = {c: np.array([number(r.get(c)) for r in rows], float) for c in ("brdf_per_sr", "u_brdf_per_sr")}
+    for c in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"):
+        columns[c] = np.array([getattr(p, c) for p in points], float)
+    flags = [tuple(f for f in str(r.get("flags", "")).split(";") if f) for r in rows]
+    return Dataset(path=Path("<run>"), manifest={}, columns=columns, point_id=[p.point_id for p in points],
+                   flags=flags, time_utc=[str(r.get("time_utc", "")) for r in rows], skipped=[], header=())
+
+
+def candidate_u_rel(rows: Sequence[Mapping[str, object]], points: Sequence[PlannedPoint],
+                    planned: Mapping[str, PlannedPoint],
+                    loo_cache: dict[bytes, np.ndarray] | None = None) -> np.ndarray:
+    """The interpolant's u/(f + τ) at each candidate (EXTRAPOLATED_U_REL where it extrapolates)."""
+    ds = rows_dataset(rows, planned)
+    predictor = InterpolatingPredictor(measured_domain(ds, loo_cache=loo_cache))
+    a = np.array([(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg) for p in points], float).reshape(-1, 4)
+    pred = predictor.predict(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
+    f = ds["brdf_per_sr"]
+    tau = TAU_REL * float(np.median(f[np.isfinite(f)]))
+    u_rel = pred.u_brdf_per_sr / (pred.brdf_per_sr + tau)
+    return np.where(pred.extrapolated, np.maximum(u_rel, EXTRAPOLATED_U_REL), u_rel)
+
+
+def binned(x: np.ndarray) -> np.ndarray:
+    """x rounded to bins of SCORE_BIN_LOG2 octaves (0 stays 0)."""
+    x = np.asarray(x, float)
+    with np.errstate(divide="ignore"):
+        return np.where(x > 0, np.exp2(np.round(np.log2(np.where(x > 0, x, 1.0)) / SCORE_BIN_LOG2) * SCORE_BIN_LOG2),
+                        0.0)
+
+
+def spread_by_gain(points: Sequence[PlannedPoint], gain: np.ndarray, k: int) -> list[int]:
+    """Indices of up to k views of one incidence: largest (binned) gain first, each damping its neighbours."""
+    if not len(points):
+        return []
+    xy = geo.disk_coordinates(np.array([p.theta_o_deg for p in points]), np.array([p.phi_o_deg for p in points]),
+                              points[0].phi_i_deg)
+    g = binned(gain).astype(float)
+    chosen: list[int] = []
+    while len(chosen) < min(k, len(points)):
+        best = int(np.argmax(np.where(np.isin(np.arange(len(points)), chosen), -1.0, g)))
+        if g[best] <= 0:
+            break
+        chosen.append(best)
+        d = np.hypot(*(xy - xy[best]).T)
+        g = binned(g * np.minimum(1.0, (d / SPREAD_RADIUS) ** 2))
+    return chosen
+
+
+def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measured: set[str], position: Motors,
+                 axes: AxesConfig, zones: Sequence[ForbiddenZone], *, batch_points: int, capture_s: float,
+                 reading_s: float, loo_cache: dict[bytes, np.ndarray] | None = None) -> Batch | None:
+    """The batch of best gain per second of rig time from `position`; None when no candidate is left.
+    `loo_cache`: see rig.analysis.predict.measured_domain."""
+    left = [p for p in candidates.points if p.point_id not in measured]
+    if not left:
+        return None
+    u_rel = candidate_u_rel(rows, left, {p.point_id: p for p in candidates.points}, loo_cache)
+    gain = u_rel ** 2
+    by_series: dict[int, list[int]] = {}
+    for k, p in enumerate(left):
+        by_series.setdefault(p.series, []).append(k)
+    best: Batch | None = None
+    for series, idx in sorted(by_series.items()):
+        pts = [left[k] for k in idx]
+        chosen = spread_by_gain(pts, gain[idx], batch_points)
+        if not chosen:
+            continue
+        one = Plan(tuple(s for s in candidates.series if s.index == series), tuple(pts[k] for k in sorted(chosen)),
+                   ())
+        ordered = order_plan(one, axes, zones, position)
+        moves = path_time_s(axes, position, np.array([p.motors_deg for p in ordered.points]))
+        seconds = moves + capture_s * len(chosen) + reading_s
+        g = float(np.sum(gain[idx][chosen]))
+        batch = Batch(ordered.points, series, seconds, g, g / seconds, float(np.max(u_rel)))
+        if best is None or binned(np.array(batch.score_per_s)) > binned(np.array(best.score_per_s)):
+            best = batch
+    return best

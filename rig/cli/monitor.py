@@ -1,0 +1,60 @@
+"""`rig monitor DIR [--port N] [--host H]`: a live, read-only web view of a dataset folder (docs/monitor.md)."""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import sys
+from pathlib import Path
+
+from rig.core.exits import EXIT_FAILED, EXIT_OK, fail
+from rig.monitor.server import is_loopback, make_server, new_token, page_url
+
+DEFAULT_PORT = 8765
+
+
+def cmd_monitor(args: argparse.Namespace) -> int:
+    """Serve until Ctrl+C. A folder that cannot be (a missing parent, a file) or a port that cannot be
+    had is one message and exit 1; a folder not made yet is waited for."""
+    folder = Path(args.dir)
+    if folder.exists() and not folder.is_dir():
+        fail(f"{folder} is not a folder (give a dataset folder)")
+        return EXIT_FAILED
+    if not folder.exists() and not folder.parent.is_dir():
+        fail(f"{folder}: neither it nor its parent folder {folder.parent} exists")
+        return EXIT_FAILED
+    token = None if is_loopback(args.host) else new_token()
+    try:
+        server = make_server(folder, args.host, args.port, token, quiet=not args.verbose)
+    except OSError as exc:
+        in_use = exc.errno == errno.EADDRINUSE
+        fail(f"cannot serve on {args.host}:{args.port}: {exc.strerror or exc}"
+             + (" (another program uses the port: choose another with --port)" if in_use else ""))
+        return EXIT_FAILED
+    print(f"rig monitor: {folder} at {page_url(server, token)} (read-only; Ctrl+C stops it)", file=sys.stderr,
+          flush=True)
+    if token:
+        print(f"rig monitor: access token {token} (required on {args.host}: give the whole address above)",
+              file=sys.stderr, flush=True)
+    if not folder.exists():
+        print(f"rig monitor: waiting for {folder} to appear (the run creates it)", file=sys.stderr, flush=True)
+    try:
+        server.serve_forever(poll_interval=0.2)
+    except KeyboardInterrupt:
+        print("\nrig monitor: stopped", file=sys.stderr)
+    finally:
+        server.server_close()
+    return EXIT_OK
+
+
+def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `rig monitor`."""
+    p = subparsers.add_parser("monitor", help="a live web page of a dataset folder while `rig run` writes it "
+                                              "(or after): progress, state, plots, events; read-only")
+    p.add_argument("dir", metavar="DIR", help="dataset folder (it may not exist yet: the run creates it)")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1, this machine only); any other address "
+                        "requires the access token printed at start")
+    p.add_argument("--verbose", action="store_true", help="log every request on stderr")
+    p.set_defaults(func=cmd_monitor)

@@ -1,0 +1,61 @@
+"""`rig report DATASET --out report.html [--fit FIT.json] [--road road.json]`: the measurement report
+(rig.report), one HTML file with everything in it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rig.cli.predict import read_fit
+from rig.core.exits import EXIT_OK, fail
+from rig.data.dataset_format import DatasetError
+from rig.data.dataset_reader import load
+from rig.data.output_folder import removed_on_failure
+from rig.report import report_html
+
+
+def read_road(path: str) -> dict:
+    """road.json as `rig export --format road` writes it; ValueError names the file."""
+    try:
+        road = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: line {exc.lineno}: not JSON ({exc.msg})") from None
+    if not isinstance(road, dict):
+        raise ValueError(f"{path}: not a road.json (write it with `rig export DATASET --format road`)")
+    return road
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Write the report; refuse an existing --out (as rig export does); bad input is exit code 2."""
+    out = Path(args.out)
+    if out.exists():
+        return fail(f"{out} already exists; choose another --out (nothing was overwritten)")
+    try:
+        ds = load(Path(args.dataset))
+        fit = read_fit(args.fit) if args.fit else None
+        if fit is not None and not {"model", "params"} <= fit.keys():
+            raise ValueError(f"{args.fit}: not a fit from `rig fit --json` (needs 'model' and 'params')")
+        road = read_road(args.road) if args.road else None
+        html = report_html(ds, fit, road)
+    except (DatasetError, ValueError, KeyError, TypeError) as exc:
+        return fail(str(exc).strip('"'))
+    except OSError as exc:
+        return fail(f"{exc.filename}: {exc.strerror}")
+    with removed_on_failure(out):
+        out.write_text(html, encoding="utf-8")
+    print(f"report of {args.dataset} → {out} ({len(html.encode()) / 1e6:.1f} MB, self-contained)", file=sys.stderr)
+    return EXIT_OK
+
+
+def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `rig report`."""
+    p = subparsers.add_parser("report", help="a self-contained HTML measurement report of a dataset (figures "
+                                             "embedded; print it to PDF from a browser)")
+    p.add_argument("dataset", metavar="DATASET", help="dataset folder")
+    p.add_argument("--out", required=True, metavar="report.html", help="output HTML file; never overwritten")
+    p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit DATASET --model NAME --json`")
+    p.add_argument("--road", metavar="road.json", help="road-lighting quantities written by "
+                                                       "`rig export DATASET --format road`")
+    p.set_defaults(func=cmd_report)

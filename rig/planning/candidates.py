@@ -1,0 +1,131 @@
+"""An adaptive campaign's candidate domain and its first pass (campaign key `sampling`, mode `adaptive`).
+
+In adaptive mode the campaign's tables say *where* the rig may measure, not what to measure in full: each
+incidence entry's θ range is filled at its finest step (the paper's 0, 10, …, 80, 85° at φi = 0 becomes 0, 5, …,
+85°), and every view of the viewing patterns is a candidate at every candidate incidence. The candidates are
+planned like a table campaign (motors, skip reasons, stable ids `<series>-<view>` from the campaign alone), so a
+chosen candidate is an ordinary planned point and a resume finds it again by its id.
+
+The first pass (cf. Dupuy & Jakob 2018, who scan retroreflection before anything else) measures the mandatory
+pairs and `first_pass_incidences` incidences spread over the main entry's θ range, at each `batch_points` views
+spread over the projected disk by farthest-point sampling, starting next to the retroreflection and the mirror
+direction: the interpolant then covers the whole domain, and rig.analysis.adaptive spends the rest of the budget
+where it is least certain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from rig.config.campaign import Campaign, CampaignError, ExplicitViews, IncidenceSeries
+from rig.config.rigfile import RigConfig
+from rig.physics import geometry as geo
+from rig.planning.points import Plan, PlannedPoint, PointAngles, SkippedPoint, as_motors, describe_reason
+from rig.planning.table import table_plan
+
+#: Candidate θi closer than this (degrees) to a value already in an entry are the same incidence.
+SAME_THETA_DEG = 1e-6
+
+
+def filled_thetas(thetas: list[float]) -> list[float]:
+    """The entry's θ values and its range filled at its finest step (the smallest gap between its values)."""
+    values = sorted(set(thetas))
+    if len(values) < 2:
+        return values
+    step = float(np.min(np.diff(values)))
+    grid = np.arange(values[0], values[-1] + SAME_THETA_DEG, step)
+    extra = [float(t) for t in grid if min(abs(t - v) for v in values) > SAME_THETA_DEG]
+    return sorted(values + extra)
+
+
+def candidate_campaign(campaign: Campaign) -> Campaign:
+    """The table campaign whose every pair is a candidate: incidence ranges filled, the mandatory pairs' incidences
+    and views added (at the end, so the ids of the table's own candidates do not depend on them)."""
+    incidence = [IncidenceSeries(phi=e.phi, theta=filled_thetas(e.theta)) for e in campaign.incidence]
+    viewing = list(campaign.viewing)
+    mandatory = campaign.sampling.mandatory
+    if mandatory:
+        incidence += [IncidenceSeries(phi=m[1], theta=[m[0]]) for m in mandatory]
+        viewing.append(ExplicitViews(points=[(m[2], m[3]) for m in mandatory]))
+    return campaign.model_copy(update={"incidence": incidence, "viewing": viewing})
+
+
+def candidate_plan(campaign: Campaign, rig: RigConfig) -> Plan:
+    """Every candidate in table order, planned (motors) or skipped with its reason; moves not checked."""
+    return table_plan(candidate_campaign(campaign), rig)
+
+
+def mandatory_ids(campaign: Campaign, candidates: Plan) -> list[str]:
+    """Ids of the planned candidates at the mandatory pairs; CampaignError naming a pair the rig cannot measure."""
+    ids = []
+    for k, pair in enumerate(campaign.sampling.mandatory):
+        match = next((p for p in (*candidates.points, *candidates.skipped) if _same_pair(p, pair)), None)
+        if not isinstance(match, PlannedPoint):
+            why = describe_reason(match.reason) if isinstance(match, SkippedPoint) else "not planned"
+            raise CampaignError(f"key 'sampling.mandatory[{k}]': value {list(pair)} (θi, φi, θo, φo) cannot be "
+                                f"measured on this rig: {why}")
+        ids.append(match.point_id)
+    return ids
+
+
+def _same_pair(p: PointAngles, pair: tuple[float, float, float, float]) -> bool:
+    theta_i, phi_i, theta_o, phi_o = pair
+    return (abs(p.theta_i_deg - theta_i) < 1e-6 and _same_azimuth(p.phi_i_deg, phi_i, theta_i)
+            and abs(p.theta_o_deg - theta_o) < 1e-6 and _same_azimuth(p.phi_o_deg, phi_o, theta_o))
+
+
+def _same_azimuth(a_deg: float, b_deg: float, theta_deg: float) -> bool:
+    return theta_deg < 1e-9 or abs((a_deg - b_deg + 180.0) % 360.0 - 180.0) < 1e-6
+
+
+def first_pass_thetas(campaign: Campaign, n: int) -> list[float]:
+    """n incidences of the main (first) entry spread evenly over its range, each snapped to a candidate θ."""
+    thetas = np.array(filled_thetas(campaign.incidence[0].theta))
+    wanted = np.linspace(thetas[0], thetas[-1], n)
+    return sorted({float(thetas[np.argmin(np.abs(thetas - w))]) for w in wanted})
+
+
+def spread_views(points: list[PlannedPoint], k: int) -> list[PlannedPoint]:
+    """k of one incidence's candidates spread over the projected disk: the ones nearest retroreflection and the
+    mirror direction first, then each next one farthest from those chosen (farthest-point sampling)."""
+    if len(points) <= k:
+        return list(points)
+    p0 = points[0]
+    xy = geo.disk_coordinates(np.array([p.theta_o_deg for p in points]), np.array([p.phi_o_deg for p in points]),
+                              p0.phi_i_deg)
+    s = np.sin(np.radians(p0.theta_i_deg))
+    seeds = [int(np.argmin(np.hypot(xy[:, 0] - x, xy[:, 1]))) for x in (s, -s)]   # retro at +sin θi, mirror at −
+    chosen = list(dict.fromkeys(seeds))
+    gap = np.min(np.hypot(*(xy[:, None, :] - xy[None, chosen, :]).transpose(2, 0, 1)), axis=1)
+    while len(chosen) < k:
+        nxt = int(np.argmax(gap))
+        chosen.append(nxt)
+        gap = np.minimum(gap, np.hypot(*(xy - xy[nxt]).T))
+    return [points[i] for i in sorted(chosen)]
+
+
+def first_pass(campaign: Campaign, candidates: Plan) -> list[PlannedPoint]:
+    """The mandatory pairs, then `batch_points` spread views at each first-pass incidence of the main entry."""
+    spec = campaign.sampling
+    by_id = {p.point_id: p for p in candidates.points}
+    chosen = [by_id[pid] for pid in mandatory_ids(campaign, candidates)]
+    phi_main = float(geo.wrap_360(campaign.incidence[0].phi))
+    for theta in first_pass_thetas(campaign, spec.first_pass_incidences):
+        here = [p for p in candidates.points if abs(p.theta_i_deg - theta) < SAME_THETA_DEG
+                and (theta < SAME_THETA_DEG or abs(p.phi_i_deg - phi_main) < SAME_THETA_DEG)]
+        chosen += [p for p in spread_views(here, spec.batch_points) if p not in chosen]
+    return chosen
+
+
+def logged_points(candidates: Plan, logged: Sequence[Mapping[str, Any]]) -> list[PlannedPoint]:
+    """The points of logged `adaptive_batch` events, in their order, with the motors the batch planned."""
+    by_id = {p.point_id: p for p in candidates.points}
+    out = []
+    for event in logged:
+        for pid, motors in zip(event["points"], event["motors_deg"]):
+            out.append(replace(by_id[pid], motors_deg=as_motors(motors)))
+    return out

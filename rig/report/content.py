@@ -1,0 +1,343 @@
+"""What a measurement report says, collected from a dataset folder (docs/dataset.md) and optionally a fit
+(`rig fit --json`) and road-lighting quantities (`rig export --format road`): plain values, no HTML, so that
+the facts can be tested apart from their presentation (rig.report.html)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rig import __version__
+from rig.data.dataset_format import DatasetError
+from rig.data.dataset_reader import Dataset
+from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
+
+#: Events of events.jsonl that record a fault the run survived (docs/dataset.md), in the report's order.
+FAULT_EVENTS = ("retry", "reconnect", "reconnect_failed", "points_discarded", "device_errors", "warning",
+                "watchdog_expired_before_connect", "watchdog_expired", "watchdog_off", "watchdog_feed_failed",
+                "suspend_timeout", "closing_reading_failed", "switch_off_ramp_failed")
+SECONDS_PER_HOUR = 3600.0
+
+
+@dataclass(frozen=True)
+class Pause:
+    """A suspender's pause: the device and reason from `suspended`, how long from the `resumed` after it."""
+    device: str
+    reason: str
+    waited_s: float | None            # None: the run never resumed (it timed out or ended)
+
+
+@dataclass(frozen=True)
+class IlluminanceTrend:
+    """E⊥ readings (`illuminance` events) over rig time, and the lamp's drift they show."""
+    rig_time_s: np.ndarray
+    e_perp_lx: np.ndarray
+    u_lx: np.ndarray
+
+    @property
+    def change_rel(self) -> float | None:
+        """Last reading / first − 1: the drift over the whole run."""
+        return float(self.e_perp_lx[-1] / self.e_perp_lx[0] - 1) if self.e_perp_lx.size >= 2 else None
+
+    @property
+    def slope_rel_per_h(self) -> float | None:
+        """Least-squares slope of E⊥ against rig time, relative to the mean, per hour (a steady lamp drift)."""
+        t = self.rig_time_s
+        if t.size < 2 or np.ptp(t) <= 0:
+            return None
+        slope_lx_per_s = np.polyfit(t, self.e_perp_lx, 1)[0]
+        return float(slope_lx_per_s * SECONDS_PER_HOUR / np.mean(self.e_perp_lx))
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """How the run went: warm-up, E⊥, pauses by suspenders and the faults it survived."""
+    warmup_s: float | None
+    warmup_stable: bool | None        # None: no warm-up recorded (an imported dataset, or a resumed run)
+    warmup_change_rel: float | None
+    illuminance: IlluminanceTrend
+    pauses: list[Pause]
+    faults: dict[str, int]            # every FAULT_EVENTS kind, 0 when absent
+    resumes: int
+    rig_time_s: float | None
+
+
+@dataclass(frozen=True)
+class Counts:
+    planned: int | None
+    measured: int
+    skipped: int
+    not_measured: int | None
+    skipped_by_reason: dict[str, int]
+    flagged: dict[str, int]           # points per quality flag
+
+
+@dataclass(frozen=True)
+class BudgetRow:
+    component: str
+    meaning: str
+    median_u_rel: float
+    p95_u_rel: float
+    median_share: float
+
+
+@dataclass(frozen=True)
+class Series:
+    index: int
+    theta_i_deg: float
+    phi_i_deg: float
+    points: int
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    name: str
+    value: float
+    stderr: float | None
+
+
+@dataclass(frozen=True)
+class FitSummary:
+    model: str
+    parameters: list[FitParameter]
+    metrics: dict[str, float]         # rmse [sr⁻¹], nrmse, ncc, where given
+    diagnostics: dict[str, Any]
+    record: dict                      # the fit as read, for the figures
+
+
+@dataclass(frozen=True)
+class RoadQuantity:
+    name: str
+    value: float
+    u: float | None
+    unit: str
+
+
+@dataclass(frozen=True)
+class RoadSummary:
+    quantities: list[RoadQuantity]
+    classes: dict[str, str]           # surface (R, C, N) and marking (R_L, Qd) classes
+    notes: list[tuple[str, str]]      # method, uncertainty, extrapolation: as road.json says
+
+
+@dataclass(frozen=True)
+class ReportContent:
+    dataset: Dataset
+    sample_id: str
+    sample_description: str
+    campaign_name: str
+    campaign_file: str
+    campaign_sha256: str
+    status: str
+    created_utc: str
+    finished_utc: str
+    software_version: str             # the version that wrote the dataset
+    report_version: str               # the version writing the report
+    rig_name: str
+    simulated: bool
+    identities: dict[str, str]
+    calibrations: list[tuple[str, str]]
+    filters: list[dict[str, float]]
+    series: list[Series]
+    counts: Counts
+    conditions: Conditions
+    budget: list[BudgetRow]
+    median_u_rel: float | None        # median of u_brdf_per_sr / brdf_per_sr over the points that have a u
+    fit: FitSummary | None = None
+    road: RoadSummary | None = None
+
+
+def read_events(folder: Path) -> list[dict]:
+    """events.jsonl's objects in order; a torn last line (docs/dataset.md) is ignored, a bad one elsewhere is
+    an error naming the line."""
+    path = folder / "events.jsonl"
+    if not path.exists():
+        return []
+    lines = path.read_text(encoding="utf-8").split("\n")
+    events = []
+    for k, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            obj = json.loads(line)
+        except json.JSONDecodeError:
+            if k == len(lines):                    # no newline after it: torn by a crash
+                break
+            raise DatasetError(f"{path}: line {k}: not a JSON object") from None
+        if isinstance(obj, dict):
+            events.append(obj)
+    return events
+
+
+def count_events(events: list[dict]) -> dict[str, int]:
+    """How many events of each kind."""
+    return dict(Counter(str(e.get("event")) for e in events))
+
+
+def _number(value: Any) -> float | None:
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def _pauses(events: list[dict]) -> list[Pause]:
+    pauses: list[Pause] = []
+    open_pause: dict | None = None
+    for e in events:
+        if e.get("event") == "suspended":
+            if open_pause is not None:
+                pauses.append(Pause(str(open_pause.get("device", "")), str(open_pause.get("reason", "")), None))
+            open_pause = e
+        elif e.get("event") == "resumed" and open_pause is not None:
+            pauses.append(Pause(str(open_pause.get("device", "")), str(open_pause.get("reason", "")),
+                                _number(e.get("waited_s"))))
+            open_pause = None
+    if open_pause is not None:
+        pauses.append(Pause(str(open_pause.get("device", "")), str(open_pause.get("reason", "")), None))
+    return pauses
+
+
+def _illuminance(events: list[dict]) -> IlluminanceTrend:
+    readings = [(_number(e.get("rig_time_s")), _number(e.get("illuminance_normal_lx")), _number(e.get("u_lx")))
+                for e in events if e.get("event") == "illuminance"]
+    kept = [(t, e, u if u is not None else np.nan) for t, e, u in readings if t is not None and e is not None]
+    arr = np.array(kept, float).reshape(-1, 3)
+    return IlluminanceTrend(arr[:, 0], arr[:, 1], arr[:, 2])
+
+
+def conditions(events: list[dict], manifest: Mapping) -> Conditions:
+    """The run's conditions from its events and manifest."""
+    warm = next((e for e in events if e.get("event") in ("warmup_stable", "warmup_not_stable")), None)
+    counted = count_events(events)
+    return Conditions(
+        warmup_s=_number(warm.get("warmup_s")) if warm else None,
+        warmup_stable=(warm.get("event") == "warmup_stable") if warm else None,
+        warmup_change_rel=_number(warm.get("change_rel")) if warm else None,
+        illuminance=_illuminance(events), pauses=_pauses(events),
+        faults={kind: counted.get(kind, 0) for kind in FAULT_EVENTS},
+        resumes=len(manifest.get("resumes") or []), rig_time_s=_number(manifest.get("rig_time_s")))
+
+
+def counts(ds: Dataset) -> Counts:
+    """Planned, measured and skipped points (the manifest's counts where the run wrote them), skipped points by
+    reason and flagged points by flag (from the files)."""
+    c = ds.manifest.get("counts") or {}
+    flagged = Counter(flag for flags in ds.flags for flag in flags)
+    return Counts(planned=c.get("planned"), measured=len(ds), skipped=len(ds.skipped),
+                  not_measured=c.get("not_measured"),
+                  skipped_by_reason=dict(Counter(str(r.get("reason", "")) for r in ds.skipped).most_common()),
+                  flagged=dict(flagged.most_common()))
+
+
+def budget(ds: Dataset) -> list[BudgetRow]:
+    """Median and 95th percentile of each u_rel_* column over the points that have them all (none in an import
+    without them), largest median share of u² first (rig.physics.budget.campaign_budget)."""
+    present = {c: m for c, m in BUDGET_COLUMNS.items() if c in ds.columns}
+    if not present:
+        return []
+    table = np.column_stack([ds[c] for c in present])
+    rows = [dict(zip(present, r)) for r in table[np.all(np.isfinite(table), axis=1)].tolist()]
+    return [BudgetRow(b["component"], b["meaning"], b["median_u_rel"], b["p95_u_rel"], b["median_share_of_variance"])
+            for b in campaign_budget(rows, present)]
+
+
+def median_u_rel(ds: Dataset) -> float | None:
+    """The typical relative standard uncertainty of f_r: the median of u/f_r where both are known and f_r > 0."""
+    f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
+    ok = np.isfinite(u) & (f > 0)
+    return float(np.median(u[ok] / f[ok])) if np.any(ok) else None
+
+
+def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
+    config = (manifest.get("rig") or {}).get("config") or {}
+    camera, meter, geometry = (config.get(k) or {} for k in ("camera", "meter", "geometry"))
+    rows = [("Camera calibration file", str(camera.get("calibration_file") or "none (sensor model)")),
+            ("Camera calibration u (rel.)", _percent(camera.get("calibration_u_rel"))),
+            ("Meter calibration", f"{_sig(meter.get('calibration_lx_per_a'))} lx/A"),
+            ("Meter calibration u (rel.)", _percent(meter.get("calibration_u_rel"))),
+            ("Meter repeatability (rel.)", _percent(meter.get("repeatability_rel"))),
+            ("Lamp distance", f"{_sig(geometry.get('lamp_distance_m'))} m"),
+            ("Camera distance", f"{_sig(geometry.get('camera_distance_m'))} m"),
+            ("Axis angle u", f"{_sig(geometry.get('angle_u_deg'))}°")]
+    alignment = manifest.get("alignment")
+    if isinstance(alignment, Mapping):
+        rows += [("Alignment: arm azimuth zero", f"{_sig(alignment.get('arm_azimuth_zero_deg'))}°"),
+                 ("Alignment: arm polar zero", f"{_sig(alignment.get('arm_polar_zero_deg'))}°"),
+                 ("Alignment u", f"{_sig(alignment.get('u_deg'))}°")]
+    else:
+        rows.append(("Alignment", "none (nominal arm zero)"))
+    footprint = manifest.get("footprint") or {}
+    if "view_half_angle_deg" in footprint:
+        rows.append(("View footprint (half-angle)", f"{_sig(footprint['view_half_angle_deg'])}°"))
+    return rows
+
+
+def _sig(value: Any, digits: int = 4) -> str:
+    """A number to `digits` significant digits, or – when absent."""
+    v = _number(value)
+    return "–" if v is None else f"{v:.{digits}g}"
+
+
+def _percent(value: Any) -> str:
+    v = _number(value)
+    return "–" if v is None else f"{100 * v:.3g} %"
+
+
+def _series(ds: Dataset) -> list[Series]:
+    out = []
+    for s in np.unique(ds["series"]).astype(int).tolist():
+        theta_i, phi_i = ds.series_incidence_deg(s)
+        out.append(Series(s, theta_i, phi_i, int(np.count_nonzero(ds["series"] == s))))
+    return out
+
+
+def fit_summary(fit: Mapping) -> FitSummary:
+    """A fit record as `rig fit --json` writes it (model, params, stderr, metrics, diagnostics)."""
+    params, stderr = fit["params"], fit.get("stderr") or {}
+    return FitSummary(str(fit["model"]),
+                      [FitParameter(str(k), float(v), _number(stderr.get(k))) for k, v in params.items()],
+                      {k: float(v) for k, v in (fit.get("metrics") or {}).items() if _number(v) is not None},
+                      dict(fit.get("diagnostics") or {}), dict(fit))
+
+
+#: road.json's scalar quantities (rig.analysis.road): key, label, unit.
+ROAD_QUANTITIES = (("R_L_mcd_m2_lx", "R_L (30 m geometry)", "mcd·m⁻²·lx⁻¹"), ("Qd_mcd_m2_lx", "Qd", "mcd·m⁻²·lx⁻¹"),
+                   ("Q0", "Q0", "cd·m⁻²·lx⁻¹"), ("S1", "S1", "1"))
+
+
+def road_summary(road: Mapping) -> RoadSummary:
+    """road.json as `rig export --format road` writes it (docs/road-lighting.md)."""
+    quantities = [RoadQuantity(label, float(road[key]), _number(road.get(f"u_{key}")), unit)
+                  for key, label, unit in ROAD_QUANTITIES if _number(road.get(key)) is not None]
+    if not quantities:
+        raise ValueError("not a road.json from `rig export --format road` (no R_L, Qd, Q0 or S1)")
+    classes = {f"surface {k}": str(v) for k, v in (road.get("surface_classes") or {}).items()}
+    classes |= {f"marking {k}": str(v) for k, v in (road.get("marking_classes") or {}).items()}
+    notes = [(k, str(road[k])) for k in ("method", "uncertainty", "extrapolated") if road.get(k)]
+    return RoadSummary(quantities, classes, notes)
+
+
+def collect(ds: Dataset, fit: Mapping | None = None, road: Mapping | None = None) -> ReportContent:
+    """Everything the report shows, from a loaded dataset and the optional fit and road records."""
+    m = ds.manifest
+    campaign, sample, rig, software = (m.get(k) or {} for k in ("campaign", "sample", "rig", "software"))
+    config = rig.get("config") or {}
+    events = read_events(ds.path)
+    return ReportContent(
+        dataset=ds, sample_id=str(sample.get("id") or ds.path.name),
+        sample_description=str(sample.get("description") or ""),
+        campaign_name=str(campaign.get("name") or "–"), campaign_file=str(campaign.get("file") or "–"),
+        campaign_sha256=str(campaign.get("sha256") or "–"), status=str(m.get("status") or "–"),
+        created_utc=str(m.get("created_utc") or "–"), finished_utc=str(m.get("finished_utc") or "–"),
+        software_version=str(software.get("version") or "–"), report_version=__version__,
+        rig_name=str(rig.get("name") or "–"), simulated=bool(rig.get("simulated")),
+        identities={str(k): str(v) for k, v in (rig.get("identities") or {}).items()},
+        calibrations=_calibrations(m),
+        filters=[dict(f) for f in ((config.get("attenuator") or {}).get("filters") or [])],
+        series=_series(ds), counts=counts(ds), conditions=conditions(events, m), budget=budget(ds),
+        median_u_rel=median_u_rel(ds),
+        fit=fit_summary(fit) if fit is not None else None, road=road_summary(road) if road is not None else None)

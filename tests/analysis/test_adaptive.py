@@ -1,0 +1,63 @@
+"""Choosing an adaptive campaign's next batch (rig.analysis.adaptive), on rows made from a known BRDF."""
+
+import numpy as np
+import pytest
+
+from repo_paths import TEST_CAMPAIGNS
+from rig.analysis.adaptive import binned, choose_batch, spread_by_gain
+from rig.analysis.validation import TruthPredictor
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import RigConfig
+from rig.planning.candidates import candidate_plan
+from rig.planning.collisions import zones_of
+from rig.planning.plan import build_plan
+
+CAMPAIGN = load_campaign(TEST_CAMPAIGNS / "e2e-adaptive.yaml")
+RIG = RigConfig()
+
+
+def rows_of(points, noise_rel=0.0, seed=0):
+    truth = TruthPredictor(CAMPAIGN.sample.simulated_brdf.model, CAMPAIGN.sample.simulated_brdf.params)
+    rng = np.random.default_rng(seed)
+    rows = []
+    for p in points:
+        f = float(truth.predict(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg).brdf_per_sr)
+        f *= 1 + noise_rel * rng.standard_normal()
+        rows.append({"point_id": p.point_id, "brdf_per_sr": f, "u_brdf_per_sr": 0.003 * f, "flags": ""})
+    return rows
+
+
+def batch_after(rows, measured):
+    plan = build_plan(CAMPAIGN, RIG)
+    return choose_batch(rows, candidate_plan(CAMPAIGN, RIG), measured, plan.points[-1].motors_deg, RIG.axes,
+                        zones_of(RIG), batch_points=8, capture_s=0.05, reading_s=0.5)
+
+
+def test_bins_are_quarter_octaves():
+    x = np.array([1.0, 1.09, 1.1, 2.0, 0.0])
+    assert binned(x) == pytest.approx([1.0, 1.0, 2 ** 0.25, 2.0, 0.0])
+
+
+def test_a_batch_spreads_over_the_largest_gains():
+    points = [p for p in candidate_plan(CAMPAIGN, RIG).points if p.theta_i_deg == pytest.approx(40.0)]
+    gain = np.zeros(len(points))
+    gain[[3, 4, 20]] = [1.0, 1.0, 0.5]          # 3 and 4 are neighbours next to retroreflection
+    chosen = spread_by_gain(points, gain, 3)
+    assert chosen[0] == 3 and 20 in chosen      # the neighbour 4 is damped below the far view 20
+    assert spread_by_gain(points, np.zeros(len(points)), 3) == []
+
+
+def test_the_next_batch_is_deterministic_under_measurement_noise():
+    """What a resumed run relies on: re-measured points differ by their noise, and that must not change the batch."""
+    first = build_plan(CAMPAIGN, RIG).points
+    measured = {p.point_id for p in first}
+    a = batch_after(rows_of(first, 0.002, seed=1), measured)
+    b = batch_after(rows_of(first, 0.002, seed=2), measured)
+    assert a is not None and [p.point_id for p in a.points] == [p.point_id for p in b.points]
+    assert {p.series for p in a.points} == {a.series} and len(a.points) <= 8
+    assert 0 < a.estimated_s and a.gain > 0 and a.max_u_rel > 0
+
+
+def test_no_batch_once_every_candidate_is_measured():
+    everything = candidate_plan(CAMPAIGN, RIG).points
+    assert batch_after(rows_of(everything), {p.point_id for p in everything}) is None

@@ -1,0 +1,142 @@
+"""`rig monitor` in headless Chromium while `rig run` measures: the count shown rises, the plots draw, a
+burnt-out lamp shows as `paused` with the lamp suspender's reason, and the page asks nothing of any server
+but the monitor.
+
+The rig is the simulated one served like hardware (rig.simulators.served, as `rig sim serve` runs it, but
+in this process so that the test can burn the lamp out and fit a new one: `inject("burnout")` and
+`world.lamp.replace()`, what rig.simulators.faults does in the soak runs); `rig run --rig` drives it from
+another process over the real protocols, and the monitor serves the dataset folder from this one. Waits
+are bounded by rig_process.HANG_S as a hang guard, never asserted on.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+
+from browser_support import requested_urls
+from repo_paths import TEST_CAMPAIGNS
+from rig.config.rigfile import RigConfig
+from rig.monitor.server import make_server, page_url
+from rig.simulators.served import PAPER_RM1, ServedRig, write_rig_file
+from rig_process import HANG_S, start_rig
+
+#: Rig seconds per wall second of the served world; with the supply's 10 s watchdog the client has 2 s of
+#: wall time between two lamp commands (as in tests/cli/test_sim_serve.py).
+SPEED = 5.0
+WATCHDOG_S = 10.0
+#: tests/campaigns/served.yaml (16 points) with a warm-up of a few rig seconds (the simulated lamp is within
+#: 0.1 % of its output 2 s apart from switch-on) and the lamp suspender checked every rig second.
+CAMPAIGN_CHANGES = {"lamp": {"warmup_min_s": 4, "warmup_check_s": 2, "warmup_stable_rel": 0.05},
+                    "suspenders": {"check_interval_s": 1}}
+#: Points measured before the lamp burns out.
+BURN_AFTER = 4
+#: Pause between two looks at the page (wall seconds); the page polls every second.
+LOOK_S = 0.1
+
+
+@pytest.fixture
+def served(tmp_path: Path) -> Iterator[tuple[ServedRig, Path]]:
+    """The served simulated rig (ticking in a thread, so that its supply's watchdog acts) and its rig file."""
+    rig = ServedRig(RigConfig.model_validate({"name": "bench", "lamp": {"watchdog_s": WATCHDOG_S}}), *PAPER_RM1,
+                    speed=SPEED)
+    rig_file = tmp_path / "served.yaml"
+    write_rig_file(rig.start(), rig_file)
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(0.005):
+            rig.tick()
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        yield rig, rig_file
+    finally:
+        stop.set()
+        ticker.join(HANG_S)
+        rig.stop()
+
+
+@pytest.fixture
+def monitor(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    """`rig monitor` of a folder that does not exist yet: its page's address and the folder."""
+    folder = tmp_path / "run"
+    server = make_server(folder, "127.0.0.1", 0, None)
+    threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    try:
+        yield page_url(server, None), folder
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def shown(browser, element: str) -> str:
+    """An element's text as the page wrote it (before CSS's upper case)."""
+    return browser.find_element("id", element).get_attribute("textContent")
+
+
+def look_until(browser, proc, what: str, ready) -> None:
+    """Look at the page until `ready()`; fail if it never comes (hang guard) or the run ends first."""
+    for _ in range(int(HANG_S / LOOK_S)):
+        if ready():
+            return
+        if proc is not None and proc.poll() is not None:
+            pytest.fail(f"rig run ended (exit {proc.returncode}) before the page showed {what}: {proc.stderr.read()}")
+        time.sleep(LOOK_S)
+    pytest.fail(f"the page never showed {what}: phase {shown(browser, 'phase')!r}, {shown(browser, 'done')} points")
+
+
+def inked_pixels(browser, canvas: str) -> int:
+    """Pixels of a canvas that something was drawn on."""
+    return browser.execute_script(
+        "const c = document.getElementById(arguments[0]);"
+        "const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+        "let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++; return n;", canvas)
+
+
+def test_the_monitor_follows_a_run_through_a_pause(browser, served, monitor, tmp_path):
+    rig, rig_file = served
+    url, folder = monitor
+    campaign = {**yaml.safe_load((TEST_CAMPAIGNS / "served.yaml").read_text()), **CAMPAIGN_CHANGES}
+    campaign_file = tmp_path / "campaign.yaml"
+    campaign_file.write_text(yaml.safe_dump(campaign))
+    requested_urls(browser)                                   # drain what earlier tests left
+    browser.get(url)
+    look_until(browser, None, "the wait for the folder", lambda: shown(browser, "phase") == "waiting")
+
+    run = start_rig("run", str(campaign_file), "--rig", str(rig_file), "--out", str(folder), "--quiet")
+    counts: list[int] = []
+
+    def done() -> int:
+        counts.append(int(shown(browser, "done")))
+        return counts[-1]
+    look_until(browser, run, f"{BURN_AFTER} points", lambda: done() >= BURN_AFTER)
+    assert shown(browser, "to-measure") == "16" and shown(browser, "phase") == "measuring"
+    rig.lamp.inject("burnout")
+    look_until(browser, run, "the pause", lambda: shown(browser, "phase") == "paused")
+    detail = shown(browser, "detail")
+    assert detail.startswith("lamp:") and "burnt out" in detail
+    paused_at = done()
+    assert int(browser.find_element("id", "polar").get_attribute("data-drawn")) >= 1
+    assert int(browser.find_element("id", "plane").get_attribute("data-drawn")) >= 1
+    assert inked_pixels(browser, "polar") > 2000 and inked_pixels(browser, "illuminance") > 2000
+    browser.get_screenshot_as_file(str(tmp_path / "monitor-paused.png"))
+    time.sleep(1.5)                                           # the run stays paused while the lamp is out
+    assert shown(browser, "phase") == "paused" and done() == paused_at
+
+    rig.world.lamp.replace()                                  # the operator fits a new lamp
+    look_until(browser, run, "the run going on", lambda: done() > paused_at)
+    run.communicate(timeout=HANG_S)
+    assert run.returncode == 0
+    look_until(browser, None, "the finished run", lambda: shown(browser, "phase") == "finished")
+    assert counts[0] < BURN_AFTER <= paused_at + 1 < done() == 16    # the lamp's pause discards the last point
+    events = browser.find_element("id", "events").text
+    assert "suspended" in events and "resumed" in events
+
+    urls = requested_urls(browser)
+    assert urls and all(u.startswith(url) for u in urls), [u for u in urls if not u.startswith(url)]

@@ -1,0 +1,51 @@
+"""`rig report`'s page in a real browser (headless Chromium, tests/browser/conftest.py): opened from file://, it
+renders its sections and every figure, asks the network for nothing but itself, and prints to a PDF of several
+pages."""
+
+import argparse
+import base64
+import re
+
+import pytest
+
+from browser_support import requested_urls
+from rig.cli import report as report_cli
+
+SECTIONS = ("sample", "rig", "conditions", "counts", "budget", "figures")
+
+
+@pytest.fixture(scope="module")
+def report_url(e2e_run, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report-browser") / "report.html"
+    parser = argparse.ArgumentParser()
+    report_cli.add_subcommand(parser.add_subparsers())
+    args = parser.parse_args(["report", str(e2e_run), "--out", str(out)])
+    assert args.func(args) == 0
+    return out.as_uri()
+
+
+def test_the_report_renders_from_its_file_alone(browser, report_url):
+    requested_urls(browser)                                     # drain what earlier tests asked for
+    browser.get(report_url)
+    assert browser.title.startswith("BRDF report")
+    for ident in SECTIONS:
+        element = browser.find_element("id", ident)
+        assert element.is_displayed() and element.size["height"] > 50, ident
+    widths = browser.execute_script(
+        "return Array.from(document.images).map(i => i.complete ? i.naturalWidth : 0);")
+    assert len(widths) >= 4 and min(widths) > 0, widths
+    urls = requested_urls(browser)
+    assert report_url in urls
+    assert all(u == report_url or u.startswith("data:") for u in urls), urls
+
+
+def test_the_report_prints_to_a_pdf_of_several_pages(browser, report_url):
+    from selenium.webdriver.common.print_page_options import PrintOptions
+
+    browser.get(report_url)
+    options = PrintOptions()
+    options.page_width, options.page_height = 21.0, 29.7        # A4, cm
+    pdf = base64.b64decode(browser.print_page(options))
+    assert pdf.startswith(b"%PDF")
+    pages = len(re.findall(rb"/Type\s*/Page(?!s)", pdf))
+    assert pages >= 6, pages                                    # each section starts a page
