@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +30,7 @@ from rig.core.values import Window  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import forward_deg, inverse_deg  # noqa: E402
 from rig.physics.optics import roi_inside_spot  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
+from rig.session.bench import best_of, machine  # noqa: E402
 from rig.simulators.camera import SimCamera  # noqa: E402
 from rig.simulators.world import SimWorld  # noqa: E402
 
@@ -40,16 +38,6 @@ ROI_PX = 70
 EXPOSURE_S = 0.01
 N_POSES = 3000
 N_REQUESTS = 100_000
-
-
-def best_of(fn: Callable[[], object], repeat: int) -> float:
-    """Shortest wall time (s) of `repeat` calls: the least disturbed by other processes."""
-    walls = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        walls.append(time.perf_counter() - start)
-    return min(walls)
 
 
 def lit_camera(cfg: RigConfig) -> SimCamera:

@@ -19,7 +19,6 @@ import argparse
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -31,23 +30,13 @@ sys.path.insert(0, str(ROOT))
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.physics.hdr import merge_exposures, merge_exposures_reference  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
+from rig.session.bench import best_of, machine  # noqa: E402
 
 EXPOSURES_S = (0.001, 0.004, 0.016)
 MERGE_TARGET_S = 20e-3
 MERGE_TARGET_COPIES = 60.0
 IMAGES_TARGET_RATIO = 3.0
 CAMPAIGN = ROOT / "campaigns" / "quick.yaml"
-
-
-def best_of(fn: Callable[[], object], repeat: int) -> float:
-    """Shortest wall time (s) of `repeat` calls: the least disturbed by other processes."""
-    walls = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        walls.append(time.perf_counter() - start)
-    return min(walls)
 
 
 def frames(cfg: RigConfig) -> tuple[list[np.ndarray], list[np.ndarray]]:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import os
 import platform
 import tempfile
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +68,16 @@ def run_settings(campaign: Campaign, campaign_path: Path, settings: Mapping[str,
             results.append({"setting": label, "rig_time_s": outcome.rig_time_s, "wall_s": outcome.wall_s,
                             **dataset_errors(Path(tmp) / "ds")})
     return results
+
+
+def best_of(fn: Callable[[], object], repeat: int) -> float:
+    """Shortest wall time (s) of `repeat` calls: the least disturbed by other processes."""
+    walls = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        walls.append(time.perf_counter() - start)
+    return min(walls)
 
 
 def machine() -> str:
