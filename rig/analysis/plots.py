@@ -33,12 +33,15 @@ from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
 from rig.data.output_folder import removed_on_failure, require_new_output
 from rig.physics.brdf_models import get_model
-from rig.physics.geometry import mirror_direction, sph_to_vec
+from rig.physics.geometry import (
+    NORMAL_INCIDENCE_DEG,
+    PLANE_TOL_DEG,
+    mirror_direction,
+    plane_axes,
+    plane_offsets,
+    sph_to_vec,
+)
 
-#: Views within this angle (degrees) of the plane of incidence are drawn in the plane plots.
-PLANE_TOL_DEG = 2.0
-#: Below this θi (degrees) the plane of incidence is undefined; the x–z plane is used.
-NORMAL_INCIDENCE_DEG = 1.0
 DPI = 110
 MEASURED, FITTED, LAMP = "#1f77b4", "#d62728", "#ff7f0e"
 RETRO_SHADE, SPECULAR_SHADE = "#fdd9b5", "#d6e6f5"
@@ -51,18 +54,6 @@ def _record_model(fit: Mapping) -> Model:
     """f_fit(ωi, ωo) of a fit record."""
     model, params = get_model(fit["model"]), dict(fit["params"])
     return lambda wi, wo: model(np.broadcast_to(wi, np.shape(wo)), wo, params)
-
-
-def plane_axes(theta_i_deg: float, phi_i_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """(t, n): unit vector in the plane of incidence toward the lamp's azimuth, and the plane's normal."""
-    phi = np.radians(phi_i_deg) if theta_i_deg >= NORMAL_INCIDENCE_DEG else 0.0
-    return np.array([np.cos(phi), np.sin(phi), 0.0]), np.array([-np.sin(phi), np.cos(phi), 0.0])
-
-
-def plane_offsets(wo: np.ndarray, t: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angular distance of views from the plane, and their signed angle in it (deg, + toward the lamp)."""
-    off = np.degrees(np.arcsin(np.clip(np.abs(wo @ n), 0.0, 1.0)))
-    return off, np.degrees(np.arctan2(wo @ t, wo[:, 2]))
 
 
 def _series_label(theta_i: float, phi_i: float) -> str:

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
-from scipy.stats import qmc
 
 from rig.analysis.prediction import Prediction, Predictor
 from rig.analysis.road import cap_quadrature, road_quantities
@@ -110,6 +109,8 @@ def validation_set(domain: Domain, n_base: int = 4096, seed: int = 0,
                    measured_deg: np.ndarray | None = None) -> ValidationSet:
     """Stratified pairs over `domain` (n_base of them) plus n_base/4 each in the retro cone, the specular cone and
     at grazing incidence; pairs outside the domain and near a measured pair (`measured_deg`, (M, 4)) are dropped."""
+    from scipy.stats import qmc  # here: scipy.stats costs ~0.7 s to import, and only the bench needs it
+
     sobol = qmc.Sobol(d=6, scramble=True, seed=seed)
     m = int(np.ceil(np.log2(max(n_base, 2))))
     base = sobol.random_base2(m)[:n_base]

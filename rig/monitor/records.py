@@ -11,10 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from rig.analysis.plots import PLANE_TOL_DEG, plane_axes, plane_offsets
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
-from rig.physics.geometry import sph_to_vec
+from rig.physics.geometry import PLANE_TOL_DEG, plane_axes, plane_offsets, sph_to_vec
 from rig.planning.plan import build_plan
 
 #: Fields of an event left out of its one-line summary (shown apart, or too long).
@@ -36,7 +35,7 @@ def point_record(row: dict[str, Any]) -> dict[str, Any]:
     """What the page plots of one row (brdf.csv's text cells or a `point_pending` event's numbers).
 
     `x`: the signed viewing angle in the plane of incidence (degrees, + toward the lamp; as
-    `rig plot` draws it: rig.analysis.plots), None for a view farther than PLANE_TOL_DEG from
+    `rig plot` draws it: rig.physics.geometry.plane_offsets), None for a view farther than PLANE_TOL_DEG from
     the plane.
     """
     ti, pi, to, po = (finite_float(row.get(k)) or 0.0 for k in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"))

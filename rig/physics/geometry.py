@@ -299,3 +299,21 @@ def disk_coordinates(theta_o_deg: np.ndarray, phi_o_deg: np.ndarray, phi_i_deg: 
     t, dphi = np.radians(theta_o_deg), np.radians(np.asarray(phi_o_deg) - np.asarray(phi_i_deg))
     s = np.sin(t)
     return np.stack([s * np.cos(dphi), s * np.abs(np.sin(dphi))], axis=-1)
+
+
+#: Views within this angle (degrees) of the plane of incidence are drawn in the plane plots.
+PLANE_TOL_DEG = 2.0
+#: Below this θi (degrees) the plane of incidence is undefined; the x–z plane is used.
+NORMAL_INCIDENCE_DEG = 1.0
+
+
+def plane_axes(theta_i_deg: float, phi_i_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """(t, n): unit vector in the plane of incidence toward the lamp's azimuth, and the plane's normal."""
+    phi = np.radians(phi_i_deg) if theta_i_deg >= NORMAL_INCIDENCE_DEG else 0.0
+    return np.array([np.cos(phi), np.sin(phi), 0.0]), np.array([-np.sin(phi), np.cos(phi), 0.0])
+
+
+def plane_offsets(wo: np.ndarray, t: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angular distance of views from the plane, and their signed angle in it (deg, + toward the lamp)."""
+    off = np.degrees(np.arcsin(np.clip(np.abs(wo @ n), 0.0, 1.0)))
+    return off, np.degrees(np.arctan2(wo @ t, wo[:, 2]))

@@ -10,6 +10,7 @@ from matplotlib.image import imread
 
 from rig.analysis import plots
 from rig.cli import plot
+from rig.physics import geometry as geo
 
 FIT_RGB = np.array([0xD6, 0x27, 0x28]) / 255          # plots.FITTED
 
@@ -68,14 +69,14 @@ def test_without_fit_no_fitted_curve(dataset, tmp_path):
 
 
 def test_plane_offsets():
-    t, n = plots.plane_axes(40.0, 90.0)
+    t, n = geo.plane_axes(40.0, 90.0)
     wo = np.array([[0.0, np.sin(np.radians(40)), np.cos(np.radians(40))],      # retroreflection
                    [0.0, -np.sin(np.radians(30)), np.cos(np.radians(30))],     # specular side
                    [np.sin(np.radians(10)), 0.0, np.cos(np.radians(10))]])     # 10° out of the plane
-    off, signed = plots.plane_offsets(wo, t, n)
+    off, signed = geo.plane_offsets(wo, t, n)
     assert np.allclose(off, [0, 0, 10]) and np.allclose(signed[:2], [40, -30])
     # at normal incidence the plane is x–z whatever φi
-    assert np.allclose(plots.plane_axes(0.0, 123.0)[0], [1, 0, 0])
+    assert np.allclose(geo.plane_axes(0.0, 123.0)[0], [1, 0, 0])
 
 
 def test_cli_plot(dataset, truth_fit, tmp_path, capsys):
