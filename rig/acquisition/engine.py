@@ -32,7 +32,7 @@ from rig.acquisition.capture import DarkFrameCache
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
 from rig.acquisition.meter_readings import illuminance_of
-from rig.acquisition.moves import CollisionError, Motors, Mover
+from rig.acquisition.moves import Motors, Mover
 from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_of
 from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
@@ -145,21 +145,29 @@ class Runner:
         run (`pause`) or raises its DeviceError."""
         def take() -> list[IlluminanceReading]:
             return [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
-        readings = self._answering(take) if pause else take()
-        est, fields = illuminance_of(readings, self.rig_time(), self.rig.meter)
+        est, fields = illuminance_of(self._answering(take) if pause else take(), self.rig_time(), self.rig.meter)
         self.writer.event("illuminance", **fields)
         return est
 
     def _new_reading(self) -> list[PlannedPoint]:
-        """Measure E⊥ and drift-correct the points since the previous reading; returns points to re-take
-        (an E⊥ jump trips its suspender, and E⊥ is read again once the lamp is steady)."""
-        est = self._read_illuminance()
+        """Measure E⊥ and drift-correct the points since the previous reading; returns points to re-take (an E⊥
+        jump trips its suspender, and E⊥ is read again once the lamp is steady; a meter that sees no light because
+        the lamp went out since the last point pauses for the lamp's suspender instead of failing the run)."""
+        retake: list[PlannedPoint] = []
+        while True:
+            try:
+                est = self._read_illuminance()
+                break
+            except DeviceError:
+                tripped = [(sus, why) for sus in self.suspenders.polled if (why := sus.check()) is not None]
+                if not tripped:
+                    raise
+                retake += self._suspend(*tripped[0])
         before = self.reading
         jump = self.suspenders.illuminance
         reason = jump.jump(before, est)
-        retake: list[PlannedPoint] = []
         if reason is not None:
-            retake = self._suspend(jump, reason)
+            retake += self._suspend(jump, reason)
             est = self._read_illuminance()
         else:
             self.ledger.write_pending(before, est)
@@ -185,9 +193,8 @@ class Runner:
     def _pause(self, suspender: Suspender, reason: str) -> None:
         """Pause until `suspender.check()` clears (checked every check_interval_s), or stop after max_wait_s.
 
-        `max_wait_s` bounds the rig time of the whole pause, the checks' own time included.
-        Points waiting for E⊥ keep the last good reading; nothing is interpolated across a pause.
-        """
+        `max_wait_s` bounds the rig time of the whole pause, the checks' own time included. Points waiting for E⊥
+        keep the last good reading; nothing is interpolated across a pause."""
         sus, device = self.campaign.suspenders, suspender.name
         self.eta.measuring(False)
         self.ledger.write_pending(self.reading, None)
@@ -340,19 +347,13 @@ class Runner:
 
     def _park(self) -> None:
         self._report("parking")
-        try:
-            self.mover.move(self.PARK_DEG)
-        except CollisionError as exc:
-            self.writer.event("park_skipped", reason=str(exc), rig_time_s=self.rig_time())
-            return
-        self.writer.event("parked", position_deg=list(self.PARK_DEG), rig_time_s=self.rig_time())
+        self.mover.park(self.PARK_DEG, self._event)
 
     def run(self) -> Status:
         """Warm up, measure, and end `complete`, `interrupted` or `failed` (then the error is re-raised).
 
-        From the first statement of the exit path on, no request can raise: the clock's sleep
-        check is removed before the rig is made safe, and the flags are not looked at again.
-        """
+        From the first statement of the exit path on, no request can raise: the clock's sleep check is removed
+        before the rig is made safe, and the flags are not looked at again."""
         ending = UNKNOWN_FAILURE
         self.dev.clock.sleep_check = self.requests.check_abort
         try:

@@ -12,6 +12,8 @@ commands and encoder readings carry the offset.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from rig.config.rigfile import RigConfig
@@ -79,3 +81,13 @@ class Mover:
         self.dev.stage.wait(timeout_s)
         self.dev.arm.wait(timeout_s)
         self.position, self.moving_to = target, None
+
+    def park(self, target: Motors, event: Callable[..., None]) -> None:
+        """Go to `target` at the end of a run; a move that would cross a forbidden zone is left out, said in an
+        event (`park_skipped`), never raised: the exit path goes on to make the rig safe."""
+        try:
+            self.move(target)
+        except CollisionError as exc:
+            event("park_skipped", reason=str(exc))
+            return
+        event("parked", position_deg=list(target))

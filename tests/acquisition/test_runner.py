@@ -202,6 +202,25 @@ def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path):
     assert next(e for e in ev if e["event"] == "resumed")["waited_s"] >= 200
 
 
+def test_a_lamp_out_just_before_an_illuminance_reading_pauses_instead_of_failing(tmp_path):
+    """The lamp goes out after a series' last point, so the next thing to see it is the meter (no light, a
+    persistent error) at the next series, before any point's suspender check: the run pauses for the lamp."""
+    state = {}
+    campaign = small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}], ordering="table")
+
+    def inject(peers, done):
+        if done == 8 and "burnt" not in state:                 # the first series (8 views) is done
+            state["burnt"] = peers["lamp"].world.clock.now()
+            peers["lamp"].inject("burnout")
+        elif "burnt" in state and "new" not in state and peers["lamp"].world.clock.now() > state["burnt"] + 200:
+            state["new"] = True
+            peers["lamp"].world.lamp.replace()
+    ev = suspenders_run(tmp_path, inject, campaign)
+    kinds = [e["event"] for e in ev]
+    assert "failed" not in kinds and "suspended" in kinds and "resumed" in kinds
+    assert next(e for e in ev if e["event"] == "suspended")["device"] == "lamp"
+
+
 def test_illuminance_jump_discards_and_retakes_the_points_since_the_last_reading(tmp_path):
     def step(peers):       # 1 % less current: within the current tolerance, 3.4 % less light
         lamp = peers["lamp"].world.lamp
