@@ -66,13 +66,20 @@ def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | N
     return model_predictor(ds, read_fit(fit_path) if fit_path else None, model, source=str(fit_path))
 
 
-def read_fit(path: str) -> dict:
-    """One model's fit as `rig fit --json` writes it; ValueError names the file and what is wrong."""
+def read_json_object(path: str | Path) -> dict | None:
+    """A JSON file's top-level object (None if it holds something else); ValueError names the file and line of
+    text that is not JSON. The CLI's readers of files rig wrote (fits, road.json) check the object's keys."""
     try:
-        fit = json.loads(Path(path).read_text(encoding="utf-8"))
+        value = json.loads(Path(path).read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: line {exc.lineno}: not JSON ({exc.msg})") from None
-    if not isinstance(fit, dict) or "fits" in fit:
+    return value if isinstance(value, dict) else None
+
+
+def read_fit(path: str) -> dict:
+    """One model's fit as `rig fit --json` writes it; ValueError names the file and what is wrong."""
+    fit = read_json_object(path)
+    if fit is None or "fits" in fit:
         raise ValueError(f"{path}: not one model's fit (write it with `rig fit DATASET --model NAME --json`)")
     return fit
 

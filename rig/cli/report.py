@@ -4,11 +4,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from rig.cli.predict import read_fit
+from rig.cli.predict import read_fit, read_json_object
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
@@ -18,11 +17,8 @@ from rig.report import report_html
 
 def read_road(path: str) -> dict:
     """road.json as `rig export --format road` writes it; ValueError names the file."""
-    try:
-        road = json.loads(Path(path).read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: line {exc.lineno}: not JSON ({exc.msg})") from None
-    if not isinstance(road, dict):
+    road = read_json_object(path)
+    if road is None:
         raise ValueError(f"{path}: not a road.json (write it with `rig export DATASET --format road`)")
     return road
 
