@@ -39,3 +39,33 @@ def e2e_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def e2e_dataset(e2e_run: Path) -> Dataset:
     """The e2e run's dataset, loaded."""
     return load(e2e_run)
+
+
+#: Sample text that would run or load something if a report did not escape it (tests/report, tests/browser).
+HOSTILE_SAMPLE = {"id": '<script>alert("rig")</script> & Co',
+                  "description": "<img src=http://example.invalid/x.png onerror=alert(1)>"}
+
+
+@pytest.fixture(scope="session")
+def e2e_report(e2e_run: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """`rig report` of a copy of the e2e run whose sample has hostile text, with a fit and a road.json made by
+    `rig fit` and `rig export`: the report's folder ("dir", with ds/, fit.json, road.json, report.html), its
+    HTML, the fit, the road quantities and the hostile sample. Built once for tests/report and tests/browser."""
+    import json
+    import shutil
+
+    from rig.cli.main import main
+
+    tmp = tmp_path_factory.mktemp("report")
+    ds = tmp / "ds"
+    shutil.copytree(e2e_run, ds)
+    manifest = json.loads((ds / "dataset.json").read_text())
+    manifest["sample"] = dict(HOSTILE_SAMPLE)
+    (ds / "dataset.json").write_text(json.dumps(manifest))
+    assert main(["fit", str(ds), "--model", "retrophong", "--json", str(tmp / "fit.json")]) == 0
+    assert main(["export", str(ds), "--format", "road", "--fit", str(tmp / "fit.json"),
+                 "--out", str(tmp / "road.json")]) == 0
+    assert main(["report", str(ds), "--out", str(tmp / "report.html"), "--fit", str(tmp / "fit.json"),
+                 "--road", str(tmp / "road.json")]) == 0
+    return {"html": (tmp / "report.html").read_text(encoding="utf-8"), "dir": tmp, "hostile": HOSTILE_SAMPLE,
+            "fit": json.loads((tmp / "fit.json").read_text()), "road": json.loads((tmp / "road.json").read_text())}

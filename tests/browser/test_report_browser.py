@@ -2,26 +2,20 @@
 renders its sections and every figure, asks the network for nothing but itself, and prints to a PDF of several
 pages."""
 
-import argparse
 import base64
 import re
 
 import pytest
 
 from browser_support import requested_urls
-from rig.cli import report as report_cli
 
-SECTIONS = ("sample", "rig", "conditions", "counts", "budget", "figures")
+SECTIONS = ("sample", "rig", "conditions", "counts", "budget", "figures", "fit", "road")
 
 
 @pytest.fixture(scope="module")
-def report_url(e2e_run, tmp_path_factory):
-    out = tmp_path_factory.mktemp("report-browser") / "report.html"
-    parser = argparse.ArgumentParser()
-    report_cli.add_subcommand(parser.add_subparsers())
-    args = parser.parse_args(["report", str(e2e_run), "--out", str(out)])
-    assert args.func(args) == 0
-    return out.as_uri()
+def report_url(e2e_report):
+    """The shared report (tests/conftest.py: the e2e run with a fit and road quantities)."""
+    return (e2e_report["dir"] / "report.html").as_uri()
 
 
 def test_the_report_renders_from_its_file_alone(browser, report_url):

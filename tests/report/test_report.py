@@ -1,25 +1,21 @@
-"""`rig report` on the shared end-to-end run (`e2e_run`, a copy of it with a hostile sample name): every section
-there, the counts and the uncertainty budget equal to the dataset's, the fit and road sections from a fit and a
-road.json made here, text from files escaped, and one message for a dataset that cannot be read."""
+"""`rig report` on the shared end-to-end run (`e2e_report`, tests/conftest.py: a copy of it with a hostile sample
+name, with a fit and a road.json): every section there, the counts and the uncertainty budget equal to the
+dataset's, the fit and road sections, text from files escaped, and one message for a dataset that cannot be read."""
 
 import argparse
 import json
 import re
-import shutil
 from html.parser import HTMLParser
 
 import numpy as np
 import pytest
 
 from rig.cli import report as report_cli
-from rig.cli.main import main
 from rig.data.dataset_reader import load
 from rig.physics.budget import BUDGET_COLUMNS
 from rig.report.content import FAULT_EVENTS, budget, conditions, read_events
 from rig.report.html import with_u
 
-HOSTILE_ID = '<script>alert("rig")</script> & Co'
-HOSTILE_DESCRIPTION = "<img src=http://example.invalid/x.png onerror=alert(1)>"
 SECTIONS = ("sample", "rig", "conditions", "counts", "budget", "figures", "fit", "road")
 
 
@@ -32,21 +28,9 @@ def rig_report(*argv: str) -> int:
 
 
 @pytest.fixture(scope="module")
-def made(e2e_run, tmp_path_factory):
-    """The report of a copy of the e2e run whose sample has hostile text, with a fit and a road.json."""
-    tmp = tmp_path_factory.mktemp("report")
-    ds = tmp / "ds"
-    shutil.copytree(e2e_run, ds)
-    manifest = json.loads((ds / "dataset.json").read_text())
-    manifest["sample"] = {"id": HOSTILE_ID, "description": HOSTILE_DESCRIPTION}
-    (ds / "dataset.json").write_text(json.dumps(manifest))
-    assert main(["fit", str(ds), "--model", "retrophong", "--json", str(tmp / "fit.json")]) == 0
-    assert main(["export", str(ds), "--format", "road", "--fit", str(tmp / "fit.json"),
-                 "--out", str(tmp / "road.json")]) == 0
-    assert rig_report(str(ds), "--out", str(tmp / "report.html"), "--fit", str(tmp / "fit.json"),
-                      "--road", str(tmp / "road.json")) == 0
-    return {"html": (tmp / "report.html").read_text(encoding="utf-8"), "dir": tmp,
-            "fit": json.loads((tmp / "fit.json").read_text()), "road": json.loads((tmp / "road.json").read_text())}
+def made(e2e_report):
+    """The report of a copy of the e2e run whose sample has hostile text, with a fit and a road.json (conftest)."""
+    return e2e_report
 
 
 class Links(HTMLParser):
@@ -136,7 +120,7 @@ def test_road_section_shows_road_json(made):
 
 def test_text_from_files_is_escaped(made):
     html = made["html"]
-    assert HOSTILE_ID not in html and HOSTILE_DESCRIPTION not in html
+    assert made["hostile"]["id"] not in html and made["hostile"]["description"] not in html
     assert "&lt;script&gt;alert(&quot;rig&quot;)&lt;/script&gt; &amp; Co" in html
     assert "&lt;img src=http://example.invalid/x.png onerror=alert(1)&gt;" in html
 
