@@ -19,7 +19,7 @@ from rig.core.errors import DeviceError
 from rig.core.values import Frame, Window
 from rig.drivers.interfaces import LuminanceCamera
 from rig.physics.geometry import LAMP_DIRECTION_GCS, camera_frame, camera_unit, sample_frame
-from rig.physics.optics import faces_lamp, in_beam, intersect_sample_plane, pixel_rays
+from rig.physics.optics import CameraOptics, faces_lamp
 from rig.simulators.sensor import SensorModel
 from rig.simulators.texture import GlintTexture, ValueNoiseTexture
 from rig.simulators.world import SimWorld
@@ -29,6 +29,57 @@ from rig.simulators.world import SimWorld
 SPOT_OUTLINE_POINTS = 256
 #: Pixels added around the outline's image: its sagitta plus pixel centres (+0.5) and rounding.
 SPOT_MARGIN_PX = 2
+
+
+def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, frame: np.ndarray,
+             radius_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lit sample seen by the pixels of `box` with the camera at arm angles (a, b) and the sample at
+    `frame` (sample_frame): which pixels see it (bool (height, width)), where their rays hit it (sample
+    coordinates, m, (N, 2)) and the SCS unit vectors from there back to the camera (ωo, (N, 3)).
+
+    The geometry of rig.physics.optics (pixel_rays, intersect_sample_plane, in_beam), computed so that
+    only the lit pixels get (N, 3) arrays: the unnormalised ray d = sx·X − sy·Y − f·B of the pixel at
+    sensor coordinates (sx, sy) (camera frame [X | Y | B]) projects on any vector q as sx·(X·q) plus a
+    term of sy alone, so the box needs only sums of a column and a row term; and the hit o + t·d,
+    t = −(o·n)/(d·n), needs no normalised d. A ray hits the front when the camera is on the normal's
+    side (o·n > 0) and d·n < 0; it is lit when the hit's GCS x² + z² ≤ r² (a negative r lights nothing).
+    """
+    cam = camera_frame(a_rad, b_rad)
+    origin = optics.distance_m * camera_unit(a_rad, b_rad)
+    sx = (box.x0 + 0.5 - optics.width_px / 2 + np.arange(box.width)) * optics.pixel_pitch_m
+    sy = (box.y0 + 0.5 - optics.height_px / 2 + np.arange(box.height)) * optics.pixel_pitch_m
+    f = optics.focal_length_m
+
+    def along(q: np.ndarray, rows: np.ndarray | slice = slice(None), cols: np.ndarray | slice = slice(None),
+              ) -> np.ndarray:
+        """d·q for the pixels at (rows, cols) of the box: all of it (h, w) by default."""
+        x, y, back = q @ cam
+        col, row = sx[cols] * x, -sy[rows] * y - f * back
+        return np.add.outer(row, col) if isinstance(rows, slice) else row + col
+
+    normal = frame[:, 2]
+    height = float(origin @ normal)
+    if height <= 0 or radius_m < 0:
+        return np.zeros((box.height, box.width), bool), np.empty((0, 2)), np.empty((0, 3))
+    approach = along(normal)
+    with np.errstate(divide="ignore"):
+        t = np.divide(-height, approach, out=np.full_like(approach, np.nan), where=approach < 0)
+    x = along(np.array([1.0, 0.0, 0.0]))
+    x *= t
+    x += origin[0]
+    z = along(np.array([0.0, 0.0, 1.0]))
+    z *= t
+    z += origin[2]
+    np.square(x, out=x)
+    x += np.square(z, out=z)
+    with np.errstate(invalid="ignore"):
+        lit = x <= radius_m ** 2                                       # NaN (no hit) is False
+    rows, cols = np.nonzero(lit)
+    t_lit = t[rows, cols]
+    d_scs = np.stack([along(frame[:, k], rows, cols) for k in range(3)], axis=1)    # d in the SCS, (N, 3)
+    xy = origin @ frame[:, :2] + t_lit[:, None] * d_scs[:, :2]
+    wo = d_scs / -np.sqrt(np.square(sx[cols]) + np.square(sy[rows]) + f * f)[:, None]   # |d|: cam orthonormal
+    return lit, xy, wo
 
 
 class SimCamera(LuminanceCamera):
@@ -43,7 +94,7 @@ class SimCamera(LuminanceCamera):
         self.glint = GlintTexture.from_config(cfg.simulation)
         self.model = SensorModel.from_config(cfg.camera, cfg.simulation, world.rng)
         self._scene_key: tuple[object, ...] | None = None
-        self._scene_value: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        self._scene_value: tuple[Window, np.ndarray, np.ndarray] | None = None
 
     def identity(self) -> str:
         return "simulated LMK 98-4 (rig sim)"
@@ -51,16 +102,17 @@ class SimCamera(LuminanceCamera):
     def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
         """Noise-free luminance (cd/m², (height, width)) reaching the sensor at the true (physical) motor
         angles: the scene's, through the filter-wheel filter in the beam (true transmission), if any."""
-        lit, per_lux = self._scene(window)
         transmission = self.world.transmission()       # of the filter in the beam, if any
         lum = np.full((window.height, window.width), self.world.config.simulation.ambient_cd_m2 * transmission)
-        if per_lux is not None:
-            lum[lit] = per_lux * (illuminance_normal_lx * transmission)
+        scene = self._scene(window)
+        if scene is not None:
+            box, lit, per_lux = scene
+            lum[window.inner(box)][lit] = per_lux * (illuminance_normal_lx * transmission)
         return lum
 
-    def _scene(self, window: Window) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Where the window sees the lit sample and its luminance there per lux of E⊥ (None, None
-        when the lamp is behind the sample).
+    def _scene(self, window: Window) -> tuple[Window, np.ndarray, np.ndarray] | None:
+        """Where the window sees the lit sample, and its luminance there per lux of E⊥: the box of the
+        window traced, the lit pixels in it (bool) and their values; None when nothing is lit.
 
         Only the pose, the window and the sample change this, not time: it is kept for the last
         (pose, window, sample), so that the exposures and dark frames of one point, and the frames
@@ -73,7 +125,7 @@ class SimCamera(LuminanceCamera):
             self._scene_key, self._scene_value = key, self._render_scene(window)
         return self._scene_value
 
-    def _render_scene(self, window: Window) -> tuple[np.ndarray | None, np.ndarray | None]:
+    def _render_scene(self, window: Window) -> tuple[Window, np.ndarray, np.ndarray] | None:
         """`_scene` computed: f_r · cos θi · texture · glint on the lit pixels (module docstring).
 
         Rays are traced only in the part of the window that the spot's outline projects into
@@ -83,21 +135,14 @@ class SimCamera(LuminanceCamera):
         alpha, beta, a, b = np.radians(world.motor_angles_deg())
         frame = sample_frame(alpha, beta)
         if not faces_lamp(frame[:, 2]):
-            return None, None
-        lit = np.zeros((window.height, window.width), bool)
-        traced = self._spot_bounds(window, frame[:, 2], a, b)
-        if traced is None:
-            return lit, np.empty(0)
-        origin, rays = pixel_rays(self.optics, a, b, traced)
-        points = intersect_sample_plane(origin, rays, frame[:, 2])
-        lit_traced = in_beam(points, world.config.geometry.spot_diameter_m / 2)
-        lit[window.inner(traced)] = lit_traced
-        keep = lit_traced.ravel()    # compress is 5× faster than boolean indexing of (h, w, 3)
-        xy = points.reshape(-1, 3).compress(keep, axis=0) @ frame[:, :2]
-        wo = rays.reshape(-1, 3).compress(keep, axis=0) @ -frame   # back along the ray, SCS
+            return None
+        box = self._spot_bounds(window, frame[:, 2], a, b)
+        if box is None:
+            return None
+        lit, xy, wo = lit_view(self.optics, a, b, box, frame, world.config.geometry.spot_diameter_m / 2)
         wi = LAMP_DIRECTION_GCS @ frame
-        return lit, (world.brdf(wi, wo) * wi[2] * self.texture(xy[:, 0], xy[:, 1])
-                     * self.glint(xy[:, 0], xy[:, 1], wi, wo))
+        return box, lit, (world.brdf(wi, wo) * wi[2] * self.texture(xy[:, 0], xy[:, 1])
+                          * self.glint(xy[:, 0], xy[:, 1], wi, wo))
 
     def _spot_bounds(self, window: Window, normal_gcs: np.ndarray, a_rad: float, b_rad: float) -> Window | None:
         """The part of `window` the spot can be seen in: the bounding box of its outline's image

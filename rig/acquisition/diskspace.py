@@ -8,8 +8,9 @@ The per-item sizes are upper bounds measured on simulated campaigns (brdf.csv ro
 with full-precision floats ~490 bytes; events.jsonl ~1.1 kB per point, mostly the
 `point_pending` record that repeats the row, plus E⊥ readings and retries), then
 multiplied by TEXT_SAFETY for what a long run on hardware adds (pauses, retries).
-Images are float32 full frames in ZIP-compressed EXR: sensor noise leaves little for
-ZIP to find (a simulated frame compresses to ~96 %), so the raw size is the estimate.
+Images are float32 full frames in uncompressed EXR (rig.data.images says why): the pixels, a
+16-byte offset-table entry and chunk header per row, and the header (point id, angles and the
+JSON metadata, well under EXR_HEADER_BYTES) make an exact bound.
 """
 
 from __future__ import annotations
@@ -28,11 +29,15 @@ FIXED_BYTES = 64 * 1024
 TEXT_SAFETY = 1.5
 EXR_HEADER_BYTES = 4096
 BYTES_PER_PIXEL = 4          # float32 luminance
+#: Per image row: its 8-byte entry in the offset table and its chunk's 8-byte header (row number, byte
+#: count); uncompressed, every chunk is one row (openexr.com, "OpenEXR File Layout").
+EXR_BYTES_PER_ROW = 16
 
 
 def image_bytes(rig: RigConfig) -> int:
     """One full-frame luminance image of the rig's camera, as written by rig.data.images."""
-    return rig.camera.width_px * rig.camera.height_px * BYTES_PER_PIXEL + EXR_HEADER_BYTES
+    cam = rig.camera
+    return cam.height_px * (cam.width_px * BYTES_PER_PIXEL + EXR_BYTES_PER_ROW) + EXR_HEADER_BYTES
 
 
 def estimate_dataset_bytes(n_points: int, n_skipped: int, rig: RigConfig, save_images: bool) -> int:

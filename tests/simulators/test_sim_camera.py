@@ -10,9 +10,10 @@ from rig.config.rigfile import CameraConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError
 from rig.core.values import Window
 from rig.physics.brdf_models import get_model
-from rig.physics.geometry import AXIS_NAMES, directions_scs, forward_deg, inverse_deg
+from rig.physics.geometry import AXIS_NAMES, directions_scs, forward_deg, inverse_deg, sample_frame
+from rig.physics.optics import in_beam, intersect_sample_plane, pixel_rays
 from rig.simulators.axis_model import AxisModel
-from rig.simulators.camera import SimCamera
+from rig.simulators.camera import SimCamera, lit_view
 from rig.simulators.sensor import SensorModel, digitise, electrons
 from rig.simulators.texture import GlintTexture, ValueNoiseTexture
 from rig.simulators.world import SimWorld
@@ -334,3 +335,28 @@ def test_texture_is_seeded_continuous_and_path_independent():
     assert not np.allclose(dense, ValueNoiseTexture(0.1, 1e-3, seed=4)(x, y))
     assert np.abs(texture(x + 1e-7, y) - dense).max() < 1e-3
     np.testing.assert_allclose(ValueNoiseTexture(0.0, 1e-3, 3)(x, y), 1.0, rtol=1e-15, atol=0)
+
+
+# --- compiled paths against their numpy definitions ----------------------------------------
+
+def test_lit_view_is_the_optics_modules_geometry():
+    """camera.lit_view against rig.physics.optics' pixel_rays → intersect_sample_plane → in_beam, pixel by pixel."""
+    for angles in [(60, 0, 34.8, 90), (80, 0, 10.7, 180), (5, 147, 31, 16), (37, 323, 78, 304)]:
+        cam = make_camera(angles=angles)
+        alpha, beta, a, b = np.radians(cam.world.motor_angles_deg())
+        frame = sample_frame(alpha, beta)
+        box = Window(400, 100, 600, 840)
+        lit, xy, wo = lit_view(cam.optics, a, b, box, frame, 0.0375)
+        origin, rays = pixel_rays(cam.optics, a, b, box)
+        points = intersect_sample_plane(origin, rays, frame[:, 2])
+        expected_lit = in_beam(points, 0.0375)
+        assert expected_lit.any() and not expected_lit.all()
+        np.testing.assert_array_equal(lit, expected_lit)
+        # the same quantities by other roundings: a picometre is 2e-9 of a glint grain (0.5 mm)
+        np.testing.assert_allclose(xy, points[expected_lit] @ frame[:, :2], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(wo, rays[expected_lit] @ -frame, rtol=0, atol=1e-12)
+    cam = make_camera(angles=(30, 0, 20, 90))
+    alpha, beta, a, b = np.radians(cam.world.motor_angles_deg())
+    assert not lit_view(cam.optics, a, b, box, sample_frame(alpha, beta), -1.0)[0].any()   # negative radius
+
+
