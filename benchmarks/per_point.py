@@ -178,7 +178,7 @@ def main() -> int:
     ap.add_argument("campaign", nargs="?", default=str(PAPER))
     ap.add_argument("--points", type=int, default=300, help="the plan's first N points (default 300)")
     ap.add_argument("--full", action="store_true", help="all points of the plan")
-    ap.add_argument("--repeat", type=int, default=3, help="runs of each; the median wall time is reported")
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each, alternated; the fastest of each is reported")
     args = ap.parse_args()
     path = Path(args.campaign)
     campaign, rig = load_campaign(path), RigConfig()
@@ -187,10 +187,13 @@ def main() -> int:
         plan = replace(plan, points=plan.points[:args.points])
     print(f"machine : {machine()}")
     print(f"settings: {path.name}, {len(plan.points)} points{' (--full)' if args.full else ''}, simulated rig "
-          f"(default RigConfig), repeat {args.repeat}, medians reported")
-    runs = sorted((pipeline(campaign, path, plan, rig) for _ in range(args.repeat)), key=lambda r: r.wall_s)
-    bares = sorted((bare_loop(campaign, plan, rig) for _ in range(args.repeat)), key=lambda r: r.wall_s)
-    run, bare = runs[len(runs) // 2], bares[len(bares) // 2]
+          f"(default RigConfig), repeat {args.repeat} alternated, best of each reported")
+    runs: list[Run] = []
+    bares: list[Run] = []
+    for _ in range(args.repeat):          # alternated: a busy spell of the machine slows both alike
+        runs.append(pipeline(campaign, path, plan, rig))
+        bares.append(bare_loop(campaign, plan, rig))
+    run, bare = min(runs, key=lambda r: r.wall_s), min(bares, key=lambda r: r.wall_s)
     n = run.points
     ms = 1e3 / n
     print(f"status  : {run.status}; {n} points measured")
@@ -205,12 +208,12 @@ def main() -> int:
     print(f"bare    : {bare.wall_s / bare.points * 1e3:.2f} ms per point = {bare.wire_s / bare.points * 1e3:.2f} ms "
           f"device exchanges + {bare.camera_s / bare.points * 1e3:.2f} ms simulated camera + rest")
     print(f"ratio   : full pipeline / bare acquisition loop = {run.wall_s / n / (bare.wall_s / bare.points):.2f}× "
-          f"(median walls {statistics.median(r.wall_s for r in runs):.2f} s / "
-          f"{statistics.median(r.wall_s for r in bares):.2f} s)")
+          f"(best walls {run.wall_s:.2f} s / {bare.wall_s:.2f} s; of the medians "
+          f"{statistics.median(r.wall_s for r in runs) / statistics.median(r.wall_s for r in bares):.2f}×)")
     print(f"cpu     : {run.cpu_s * ms:.2f} ms per point of this process's CPU (driver, peers and camera alike) against "
           f"{bare.cpu_s / bare.points * 1e3:.2f} ms bare: {run.cpu_s / n / (bare.cpu_s / bare.points):.2f}× "
           "(steadier than wall time on a busy machine; misses the fsync waits)")
-    return 0 if run.status == "complete" else 1
+    return 0 if all(r.status == "complete" for r in runs) else 1
 
 
 if __name__ == "__main__":

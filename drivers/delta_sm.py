@@ -256,7 +256,7 @@ class DeltaSM(LineInstrument, LampSupply):
         A feed due less than a feed period after the supply answered a command is skipped (the command
         restarted the watchdog), but never two in a row: the supply is silent for less than two feed periods
         (half the watchdog time), and a watchdog found expired or off is still noticed within that time.
-        Between points the lamp is queried anyway (the lamp suspender), so this saves one exchange a point."""
+        The lamp suspender's checks (every few seconds of rig time between points) each save a feed this way."""
         if self._fed_last_time and self.clock.now() - self._answered_at_s < self._feed_period_s:
             self._fed_last_time = False
             return

@@ -6,7 +6,7 @@ exits: whatever happens, the lamp is switched off, the axes are stopped and the 
 uncertainty, rows) is pure. An adaptive campaign's points arrive in batches from a `PointSource`.
 
 Drift correction needs the E⊥ reading *after* a point, so with `illuminance.correction: interpolate` a measured
-point is first written ahead to events.jsonl (`point_pending`, fsync'ed: nothing is lost if the process dies)
+point is first written ahead to events.jsonl (`point_pending`; nothing is lost if the process dies)
 and appended to brdf.csv once the next reading brackets it (rig.acquisition.ledger).
 
 Interruption: suspenders (rig.acquisition.suspenders) pause the run, and every tripped one is handled by
@@ -37,7 +37,7 @@ from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_o
 from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
 from rig.acquisition.summary import run_summary
-from rig.acquisition.suspenders import Retake, Suspender, device_silent, install
+from rig.acquisition.suspenders import UNVOUCHED, Suspender, device_silent, install
 from rig.acquisition.warmup import warm_up
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
@@ -150,19 +150,19 @@ class Runner:
         return est
 
     def _new_reading(self) -> list[PlannedPoint]:
-        """Measure E⊥ and drift-correct the points since the previous reading; returns points to re-take (an E⊥
-        jump trips its suspender, and E⊥ is read again once the lamp is steady; a meter that sees no light because
-        the lamp went out since the last point pauses for the lamp's suspender instead of failing the run)."""
-        retake: list[PlannedPoint] = []
+        """Check the lamp, measure E⊥ and drift-correct the points since the previous reading; returns points to
+        re-take (a lamp out of tolerance or an E⊥ jump trips its suspender, and E⊥ is read again once the lamp is
+        steady; a meter that sees no light because the lamp went out since the check pauses for the lamp's
+        suspender instead of failing the run)."""
+        retake = self._suspend(*tripped) if (tripped := self.suspenders.tripped(self._answering, now=True)) else []
         while True:
             try:
                 est = self._read_illuminance()
                 break
             except DeviceError:
-                tripped = [(sus, why) for sus in self.suspenders.polled if (why := sus.check()) is not None]
-                if not tripped:
+                if not (tripped := self.suspenders.tripped(lambda check: check(), now=True)):
                     raise
-                retake += self._suspend(*tripped[0])
+                retake += self._suspend(*tripped)
         before = self.reading
         jump = self.suspenders.illuminance
         reason = jump.jump(before, est)
@@ -186,9 +186,8 @@ class Runner:
 
     def _rewind(self, suspender: Suspender) -> list[PlannedPoint]:
         """Discard the points waiting for E⊥ that `suspender` says (they are measured again); returns them."""
-        waiting = len(self.ledger.pending)
-        n = {Retake.NOTHING: 0, Retake.LAST_POINT: min(1, waiting), Retake.SINCE_READING: waiting}[suspender.retake]
-        return self.ledger.discard_last(n, suspender.discard_reason)
+        n = self.suspenders.to_discard(suspender, len(self.ledger.pending))
+        return self.ledger.discard_last(n, suspender.discard_reason or UNVOUCHED)
 
     def _pause(self, suspender: Suspender, reason: str) -> None:
         """Pause until `suspender.check()` clears (checked every check_interval_s), or stop after max_wait_s.
@@ -244,10 +243,8 @@ class Runner:
     def _take_point(self, point: PlannedPoint, next_point: PlannedPoint | None) -> list[PlannedPoint]:
         """Measure one point under the suspenders; returns the points to (re-)take before going on,
         this one among them if a suspender tripped before or while it was measured."""
-        for suspender in self.suspenders.polled:
-            reason = self._answering(suspender.check)
-            if reason is not None:
-                return self._suspend(suspender, reason) + [point]
+        if tripped := self.suspenders.tripped(self._answering):
+            return self._suspend(*tripped) + [point]
         try:
             m = self._measure_point(point, next_point)
         except DeviceError as exc:
@@ -327,14 +324,16 @@ class Runner:
         return batch
 
     def _closing_reading(self) -> None:
-        """After a graceful stop: one E⊥ reading brackets the points waiting for one; nothing waits.
+        """After a graceful stop: a lamp check and one E⊥ reading bracket the points waiting for one; nothing waits.
 
-        No point waits during the warm-up or a pause (a pause writes them first), so then there is no reading to
-        take. A meter that does not answer leaves them with the last E⊥ (the exit path writes them); a jump beyond
-        the drift limit discards them, so that `--resume` measures them again."""
+        No point waits during the warm-up or a pause (a pause writes them first), so then there is nothing to take.
+        A lamp out of tolerance discards those it has not vouched for; a meter that does not answer leaves them with
+        the last E⊥ (the exit path writes them); a jump beyond the drift limit discards them (`--resume` retakes)."""
         if not self.ledger.pending:
             return
         try:
+            if tripped := self.suspenders.tripped(lambda check: check(), now=True):
+                self._rewind(tripped[0])
             est = self._read_illuminance(pause=False)
         except DeviceError as exc:
             self.writer.event("closing_reading_failed", error=str(exc), rig_time_s=self.rig_time())
@@ -344,10 +343,6 @@ class Runner:
             self._rewind(jump)
         else:
             self.ledger.write_pending(self.reading, est)
-
-    def _park(self) -> None:
-        self._report("parking")
-        self.mover.park(self.PARK_DEG, self._event)
 
     def run(self) -> Status:
         """Warm up, measure, and end `complete`, `interrupted` or `failed` (then the error is re-raised).
@@ -369,7 +364,8 @@ class Runner:
             except StopRequested as stop:
                 ending = ending_of(stop)
                 self._closing_reading()
-                self._park()
+                self._report("parking")
+                self.mover.park(self.PARK_DEG, self._event)
         except (AbortRequested, KeyboardInterrupt) as abort:
             ending = ending_of(abort)
         except Exception as exc:
@@ -382,8 +378,10 @@ class Runner:
         return ending.status
 
     def _record_exit(self, ending: RunEnding, problems: list[str]) -> None:
-        """Events and manifest of how the run ended; written after the rig is safe."""
+        """Events and manifest of how the run ended; written after the rig is safe (the waiting points no lamp check
+        vouched for are discarded: `--resume` measures them again)."""
         try:
+            self.ledger.discard_last(self.suspenders.to_discard(None, len(self.ledger.pending)), UNVOUCHED)
             if ending.status == "interrupted":
                 self.writer.event("interrupted", graceful=ending.graceful, reason=self.requests.reason,
                                   rig_time_s=self.rig_time(), measured=self.measured)

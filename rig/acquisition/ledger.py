@@ -37,7 +37,8 @@ class Ledger:
         row = latest_row(m, reading, self.constants)
         if self.interpolate:
             self.pending.append(m)
-            self.writer.event("point_pending", row=row)   # a crash before the next reading loses nothing
+            # a crash before the next reading loses nothing; fsync'ed behind, off the point's path
+            self.writer.event_synced_behind("point_pending", row=row)
         else:
             self._append([row])
 

@@ -8,15 +8,30 @@ poll its check, re-warm the lamp if it says so, and measure the discarded points
 (with the point in flight, if one was).
 
 Installed from the campaign's `suspenders` section:
-- the lamp (current or voltage out of tolerance), checked before every point;
+- the lamp (current or voltage out of tolerance), polled before every point and checked at most every
+  `LampOutOfTolerance.CHECK_EVERY_S` of rig time, and always before rows become final (below); with
+  `illuminance.correction: latest` a row is final at once, so the lamp is checked before every point;
 - an E⊥ jump beyond the drift limit between two readings, checked at every reading;
 and, whenever a device stops answering, a suspender that probes it until it answers again.
+
+The lamp on a schedule, and why no spoiled row survives: a lamp check costs two queries to the supply, the largest
+share of the pipeline's round trips beyond the bare acquisition loop when made before every point. Polled on a
+schedule, a failure is seen up to CHECK_EVERY_S late, so a check vouches only for the points measured before it,
+and a trip discards every point since the last passing check (`Retake.SINCE_CHECK`: one point when the lamp is
+checked before every point, as before). Those points can still be discarded because every row becomes final only
+after a passing check: the engine checks the polled suspenders for real before each E⊥ reading (whose rows it
+closes, also the closing reading of a graceful stop), and any other discard, a pause for another suspender or the
+exit path, discards with its own points those the lamp has not vouched for yet (`Installed.to_discard`), so that
+`--resume` measures them again. Burn-out and an open circuit (no current), the supply's own trip and drift are
+lasting: the next check sees them. A flicker between two checks is missed, as it was between a check and the
+point after it; the E⊥ reading at the end of the series catches any change of light beyond the drift limit.
 """
 
 from __future__ import annotations
 
 import abc
 import enum
+import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,16 +39,22 @@ from dataclasses import dataclass
 from rig.config.campaign import Campaign, Lamp
 from rig.config.campaign import Suspenders as SuspendersConfig
 from rig.config.rigfile import RigConfig
+from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.interfaces import IlluminanceMeter, LampSupply, RigDevices
 from rig.physics.illuminance import IlluminanceEstimate
+
+#: The `reason` of points discarded, at a pause for another suspender or at the exit, because no lamp check came
+#: after them (module docstring).
+UNVOUCHED = "lamp not checked since"
 
 
 class Retake(enum.Enum):
     """Which points waiting for their closing E⊥ reading a tripped suspender discards."""
 
     NOTHING = "nothing"                  # a device outage: the exchange it interrupted is repeated
-    LAST_POINT = "last point"            # the lamp: the last point may have been lit by a failing lamp
+    LAST_POINT = "last point"            # the last point may have been spoiled
+    SINCE_CHECK = "since check"          # the lamp: every point since its last passing check
     SINCE_READING = "since reading"      # an E⊥ jump: every point since the last reading
 
 
@@ -50,10 +71,26 @@ class Suspender(abc.ABC):
 
     def __init__(self) -> None:
         self.discards: Counter[str] = Counter()     # point id: times this suspender discarded it
+        #: Points polled for since this suspender's last passing check (Retake.SINCE_CHECK): no check came after them.
+        self.unvouched = 0
 
     @abc.abstractmethod
     def check(self) -> str | None:
         """Why the run must stay paused, or None when it may go on."""
+
+    def poll(self) -> str | None:
+        """`check()` before a point (a suspender may check on a schedule instead)."""
+        return self.check()
+
+    def at_risk(self, waiting: int) -> int:
+        """How many of the last `waiting` points (those waiting for E⊥) this suspender's condition may have spoiled,
+        had it tripped now."""
+        return {Retake.NOTHING: 0, Retake.LAST_POINT: min(1, waiting), Retake.SINCE_CHECK: min(self.unvouched, waiting),
+                Retake.SINCE_READING: waiting}[self.retake]
+
+    def forget(self, n: int) -> None:
+        """The last `n` points waiting for E⊥ were discarded: fewer are left that no check vouched for."""
+        self.unvouched = max(self.unvouched - n, 0)
 
     def discarded(self, point_ids: Sequence[str]) -> None:
         """Count the points this suspender discarded; one that limits its re-takes raises here."""
@@ -61,23 +98,45 @@ class Suspender(abc.ABC):
 
 
 class LampOutOfTolerance(Suspender):
-    """Lamp current or voltage outside the campaign's tolerance (a burn-out shows as no current)."""
+    """Lamp current or voltage outside the campaign's tolerance (a burn-out shows as no current); polled on a
+    schedule (module docstring)."""
 
     name = "lamp"
-    retake = Retake.LAST_POINT
+    retake = Retake.SINCE_CHECK
     discard_reason = "lamp"
     rewarm = True
     #: Lamp current below this fraction of the setpoint: the pause names a burn-out or an open circuit.
     BURNT_OUT_FRACTION = 0.5
+    #: Rig time between two checks of the points' polls while points wait for E⊥: a simulated point takes about a
+    #: second of moves and exposures, so about four share a check, and a lamp failure costs at most this much
+    #: re-measuring.
+    CHECK_EVERY_S = 5.0
 
     def __init__(self, lamp: LampSupply, current_a: float, tolerances: SuspendersConfig,
-                 reference_v: Callable[[], float | None]):
+                 reference_v: Callable[[], float | None], clock: Clock, check_every_s: float = CHECK_EVERY_S):
         """`tolerances`: the campaign's lamp current and voltage tolerances; `reference_v`: the lamp
-        voltage after the last warm-up (None before the first)."""
+        voltage after the last warm-up (None before the first); `clock`: the rig's, for the schedule;
+        `check_every_s`: 0 checks before every point (rows appended at once cannot be taken back)."""
         super().__init__()
         self.lamp, self.current_a, self.tolerances, self.reference_v = lamp, current_a, tolerances, reference_v
+        self.clock, self.check_every_s = clock, check_every_s
+        self.passed_at_s = -math.inf     # clock time of the last passing check
+
+    def poll(self) -> str | None:
+        """Check when CHECK_EVERY_S has passed since the last passing check; either way the point about to be
+        measured is not vouched for until the next check passes (a poll whose point is not kept counts too: at
+        worst a point is measured once more)."""
+        reason = self.check() if self.clock.now() - self.passed_at_s >= self.check_every_s else None
+        self.unvouched += reason is None
+        return reason
 
     def check(self) -> str | None:
+        reason = self._out_of_tolerance()
+        if reason is None:
+            self.passed_at_s, self.unvouched = self.clock.now(), 0
+        return reason
+
+    def _out_of_tolerance(self) -> str | None:
         current = self.lamp.measure_current_a()
         wanted = self.current_a
         if abs(current - wanted) > self.tolerances.lamp_current_tolerance_rel * wanted:
@@ -179,15 +238,36 @@ def device_silent(devices: RigDevices, device: str) -> DeviceSilent:
 class Installed:
     """The campaign's suspenders on one engine."""
 
-    polled: tuple[Suspender, ...]       # checked before every point
+    polled: tuple[Suspender, ...]       # polled before every point, checked before rows become final
     illuminance: IlluminanceJump        # checked at every E⊥ reading
+
+    def tripped(self, answering: Callable[[Callable[[], str | None]], str | None], *,
+                now: bool = False) -> tuple[Suspender, str] | None:
+        """The first polled suspender that trips, and why: polled before a point, or checked `now` (before the
+        rows of the waiting points become final); each exchange goes through `answering` (a silent device pauses)."""
+        for suspender in self.polled:
+            reason = answering(suspender.check if now else suspender.poll)
+            if reason is not None:
+                return suspender, reason
+        return None
+
+    def to_discard(self, tripped: Suspender | None, waiting: int) -> int:
+        """How many of the last `waiting` points to discard when `tripped` trips (None: rows become final without a
+        check, at the exit): its own, and any a polled suspender has not vouched for yet (module docstring); the
+        polled suspenders count them as gone."""
+        n = max((s.at_risk(waiting) for s in (*self.polled, *([tripped] if tripped else []))), default=0)
+        for suspender in self.polled:
+            suspender.forget(n)
+        return n
 
 
 def install(campaign: Campaign, rig: RigConfig, devices: RigDevices, *, lamp_reference_v: Callable[[], float | None],
             wait: Callable[[float], None]) -> Installed:
     """The suspenders of `campaign.suspenders` for a run on `devices`."""
     sus = campaign.suspenders
-    lamp = LampOutOfTolerance(devices.lamp, rig.lamp.current_a, sus, lamp_reference_v)
+    # on a schedule only while points wait for their closing E⊥ reading (module docstring)
+    every_s = LampOutOfTolerance.CHECK_EVERY_S if campaign.illuminance.correction == "interpolate" else 0.0
+    lamp = LampOutOfTolerance(devices.lamp, rig.lamp.current_a, sus, lamp_reference_v, devices.clock, every_s)
     jump = IlluminanceJump(devices.meter, sus.illuminance_drift_limit_rel, campaign.lamp, rig.meter.repeatability_rel,
                            wait)
     return Installed((lamp,), jump)

@@ -1,8 +1,9 @@
 """Writing the dataset folder (contract: docs/dataset.md) so that no completed point is lost.
 
 brdf.csv rows are appended and fsync'ed as each point completes; events.jsonl
-likewise; dataset.json is replaced atomically (temp file, fsync, rename,
-fsync of the folder), so a crash at any instant leaves readable files.
+likewise (a point written ahead, `point_pending`, is fsync'ed behind: `event_synced_behind`);
+dataset.json is replaced atomically (temp file, fsync, rename, fsync of the folder), so a
+crash at any instant leaves readable files.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import json
 import os
 import shutil
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -97,7 +99,8 @@ def _json_default(obj: Any) -> Any:
 
 
 class _AppendLog:
-    """A line-oriented file whose every line is on disk before append() returns.
+    """A line-oriented file whose every line is on disk before append() returns (or, appended with
+    `sync_behind`, before the next append starts).
 
     A failed append (a full disk) is undone by truncating to the previous length, so the file
     never ends in half a line that later lines would be glued to.
@@ -107,31 +110,70 @@ class _AppendLog:
         self.path = path
         self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o644)
         self._size = os.fstat(self._fd).st_size
+        self._syncer: ThreadPoolExecutor | None = None
+        self._behind: tuple[Future[None], int] | None = None     # the fsync in flight, the size before its line
 
-    def append(self, line: str) -> None:
+    def append(self, line: str, *, sync_behind: bool = False) -> None:
+        """Write `line`; fsync it before returning, or with `sync_behind` on a background thread.
+
+        Behind: the line is written before this returns, so a process that is killed loses nothing
+        (the kernel holds it), while the fsync (milliseconds on a busy disk) overlaps the caller's next work. Only a
+        power cut or a kernel crash during that fsync can lose the line, and nothing written after it: every append
+        first waits for the fsync in flight, so what is on disk is always a prefix of what was written. A failed
+        background fsync undoes its line and raises here, at the next append (or at `settle`)."""
+        self.settle()
         data = line.encode("utf-8")
         try:
             _write_all(self._fd, data)
-            os.fsync(self._fd)
+            if not sync_behind:
+                os.fsync(self._fd)
         except OSError:
-            try:
-                os.ftruncate(self._fd, self._size)
-            except OSError:
-                pass     # nothing better to do; a reader ignores a torn last line
+            self._truncate(self._size)
             raise
+        if sync_behind:
+            if self._syncer is None:
+                self._syncer = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"fsync {self.path.name}")
+            self._behind = (self._syncer.submit(os.fsync, self._fd), self._size)
         self._size += len(data)
 
+    def settle(self) -> None:
+        """Wait for the fsync in flight, if any; its OSError is raised here after its line was cut off."""
+        if self._behind is None:
+            return
+        sync, size_before = self._behind
+        self._behind = None
+        try:
+            sync.result()
+        except OSError:
+            self._truncate(size_before)
+            self._size = size_before
+            raise
+
+    def _truncate(self, size: int) -> None:
+        try:
+            os.ftruncate(self._fd, size)
+        except OSError:
+            pass     # nothing better to do; a reader ignores a torn last line
+
     def close(self) -> None:
+        """Close the file after the fsync in flight (whose failure is no longer anyone's to handle)."""
+        try:
+            self.settle()
+        except OSError:
+            pass
+        if self._syncer is not None:
+            self._syncer.shutdown()
+            self._syncer = None
         if self._fd >= 0:
             os.close(self._fd)
             self._fd = -1
 
 
-def _append(log: _AppendLog | None, line: str) -> None:
+def _append(log: _AppendLog | None, line: str, *, sync_behind: bool = False) -> None:
     """Append to a writer's log; its logs are open from the constructor (or `reopen`) until `close`."""
     if log is None:
         raise RuntimeError("the dataset writer's files are not open")
-    log.append(line)
+    log.append(line, sync_behind=sync_behind)
 
 
 class DatasetWriter:
@@ -333,9 +375,20 @@ class DatasetWriter:
             self.unwritten_rows += len(rows)
 
     def event(self, kind: str, **fields: Any) -> None:
+        """Append an event to events.jsonl; it is on disk when this returns."""
+        self._event(kind, fields, sync_behind=False)
+
+    def event_synced_behind(self, kind: str, **fields: Any) -> None:
+        """Append an event that is written when this returns and fsync'ed on a background thread (`_AppendLog.append`):
+        for the record of every point (`point_pending`), where a synchronous fsync cost the pipeline milliseconds a
+        point. A killed process loses nothing; a power cut at most this record (its point is measured again on
+        resume), never one written after it. A failed fsync raises at the next write (DiskFullError alike)."""
+        self._event(kind, fields, sync_behind=True)
+
+    def _event(self, kind: str, fields: Mapping[str, Any], *, sync_behind: bool) -> None:
         record = {"time_utc": utc_now(), "event": kind, **fields}
         line = json.dumps(record, default=_json_default) + "\n"
-        self._guarded("events.jsonl", lambda: _append(self._events, line))
+        self._guarded("events.jsonl", lambda: _append(self._events, line, sync_behind=sync_behind))
 
     def update_manifest(self, **changes: Any) -> None:
         """Replace dataset.json with the changes; on a full disk the reserve is freed to make room

@@ -6,6 +6,7 @@ campaign runs, from the progress callback; the camera, an in-process device, is 
 
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
@@ -149,57 +150,77 @@ def test_axis_alarm_stops_cleanly(tmp_path):
                                          ("lamp", "garbled"), ("lamp", "disconnect"), ("meter", "short"),
                                          ("meter", "garbled")])
 def test_transient_protocol_faults_cost_a_retry_event(tmp_path, peer, fault):
-    """The lamp's next exchange is switching off at the end, the meter's the next series' E⊥."""
+    """The meter's next exchange is the next series' E⊥; the lamp's a check or a watchdog feed (which reports a
+    failed feed instead of retrying: the watchdog is fed again a feed period later)."""
     campaign = small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])
     status, _, runner, plan, lamp_on, moving = run(
         tmp_path, campaign, inject=at_point(4, lambda peers: peers[peer].inject(fault)))
     assert status == "complete"
     assert len(rows(tmp_path / "ds")) == len(plan.points)
     assert not lamp_on and not moving
-    retries = [e for e in events(tmp_path / "ds") if e["event"] == "retry"]
+    retries = [e for e in events(tmp_path / "ds") if e["event"] in ("retry", "watchdog_feed_failed")]
     assert len(retries) == 1
     assert retries[0]["device"] in (peer, "arm_azimuth", "arm_polar", "stage_vertical", "stage_normal")
 
 
+def lit_rows_only(folder, runner, burnt_s, replaced_s=math.inf):
+    """No row of brdf.csv was measured between a burn-out and the new lamp (times on the rig clock)."""
+    dark = [r["point_id"] for r in rows(folder) if burnt_s <= float(r["rig_time_s"]) + runner.t0 < replaced_s]
+    assert dark == []
+
+
 def test_lamp_burnout_pauses_then_stops_cleanly_naming_the_lamp(tmp_path):
     campaign = small_campaign(suspenders={"max_wait_s": 600})
-    status, error, runner, plan, lamp_on, moving = run(
-        tmp_path, campaign, inject=at_point(6, lambda peers: peers["lamp"].inject("burnout")))
+    burnt = []
+
+    def burn_out(peers):
+        burnt.append(peers["lamp"].world.clock.now())
+        peers["lamp"].inject("burnout")
+    status, error, runner, plan, lamp_on, moving = run(tmp_path, campaign, inject=at_point(10, burn_out))
     assert status == "raised" and str(error).startswith("lamp: paused 600 s and still: lamp current 0.000 A")
     assert "burnt out" in str(error)
-    assert runner.measured == 5          # the point before the check may have been dark: discarded
+    # the points since the last passing lamp check may have been dark: discarded, the first series' rows kept
+    assert 8 <= runner.measured < 10
+    lit_rows_only(tmp_path / "ds", runner, burnt[0])
     assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, "burnt out")
     kinds = [e["event"] for e in events(tmp_path / "ds")]
     assert kinds.index("suspended") < kinds.index("suspend_timeout") < kinds.index("failed")
 
 
 def suspenders_run(tmp_path, inject, campaign=None):
-    """A run with a fault injected after point 6 and the given action when the run pauses."""
+    """A run with a fault injected after point 6 and the given action when the run pauses: its events, its runner."""
     campaign = campaign or small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])
     status, error, runner, plan, lamp_on, moving = run(tmp_path, campaign, inject=inject)
     assert status == "complete", error
     got = [r["point_id"] for r in rows(tmp_path / "ds")]
     assert sorted(got) == sorted(p.point_id for p in plan.points)        # each point once
     assert not lamp_on and not moving
-    return [e for e in events(tmp_path / "ds")]
+    return events(tmp_path / "ds"), runner
 
 
-def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path):
+@pytest.mark.parametrize("burnt_after", [6, 7])
+def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path, burnt_after):
+    """The lamp is checked every few seconds of rig time, not before every point: a burn-out mid-series still
+    pauses the run, and every point measured since the last passing check is discarded and measured again."""
     state = {}
 
     def inject(peers, done):
-        if done == 6 and "burnt" not in state:
+        if done == burnt_after and "burnt" not in state:
             state["burnt"] = peers["lamp"].world.clock.now()
             peers["lamp"].inject("burnout")
         elif "burnt" in state and "new" not in state and peers["lamp"].world.clock.now() > state["burnt"] + 200:
-            state["new"] = True
+            state["new"] = peers["lamp"].world.clock.now()
             peers["lamp"].world.lamp.replace()          # the operator fits a new lamp
-    ev = suspenders_run(tmp_path, inject)
+    ev, runner = suspenders_run(tmp_path, inject)          # complete, each point once
     kinds = [e["event"] for e in ev]
     assert "suspended" in kinds and "resumed" in kinds and kinds.count("warmup_stable") == 2
     discarded = next(e for e in ev if e["event"] == "points_discarded")
-    assert discarded["reason"] == "lamp" and len(discarded["point_ids"]) == 1
+    pending_before = [e["row"]["point_id"] for e in ev[:ev.index(discarded)] if e["event"] == "point_pending"]
+    assert discarded["reason"] == "lamp" and 1 <= len(discarded["point_ids"]) <= 5
+    assert discarded["point_ids"] == pending_before[-len(discarded["point_ids"]):]    # the last ones measured
     assert next(e for e in ev if e["event"] == "resumed")["waited_s"] >= 200
+    lit_rows_only(tmp_path / "ds", runner, state["burnt"], state["new"])
+
 
 
 def test_a_lamp_out_just_before_an_illuminance_reading_pauses_instead_of_failing(tmp_path):
@@ -215,7 +236,7 @@ def test_a_lamp_out_just_before_an_illuminance_reading_pauses_instead_of_failing
         elif "burnt" in state and "new" not in state and peers["lamp"].world.clock.now() > state["burnt"] + 200:
             state["new"] = True
             peers["lamp"].world.lamp.replace()
-    ev = suspenders_run(tmp_path, inject, campaign)
+    ev, _ = suspenders_run(tmp_path, inject, campaign)
     kinds = [e["event"] for e in ev]
     assert "failed" not in kinds and "suspended" in kinds and "resumed" in kinds
     assert next(e for e in ev if e["event"] == "suspended")["device"] == "lamp"
@@ -225,7 +246,7 @@ def test_illuminance_jump_discards_and_retakes_the_points_since_the_last_reading
     def step(peers):       # 1 % less current: within the current tolerance, 3.4 % less light
         lamp = peers["lamp"].world.lamp
         lamp.set_current(0.99 * lamp.current_setpoint_a(), 0.0)
-    ev = suspenders_run(tmp_path, at_point(6, step))
+    ev, _ = suspenders_run(tmp_path, at_point(6, step))
     discarded = next(e for e in ev if e["event"] == "points_discarded")
     assert discarded["reason"] == "illuminance jump" and len(discarded["point_ids"]) >= 1
     assert next(e for e in ev if e["event"] == "suspended")["device"] == "illuminance"
@@ -233,7 +254,7 @@ def test_illuminance_jump_discards_and_retakes_the_points_since_the_last_reading
 
 @pytest.mark.parametrize("peer", ["meter", "arm"])
 def test_device_that_stops_answering_pauses_until_it_answers(tmp_path, peer):
-    ev = suspenders_run(tmp_path, at_point(6, lambda peers: peers[peer].inject("no_reply", count=6)))
+    ev, _ = suspenders_run(tmp_path, at_point(6, lambda peers: peers[peer].inject("no_reply", count=6)))
     suspended = next(e for e in ev if e["event"] == "suspended")
     assert suspended["device"] in (peer, "arm_azimuth", "arm_polar") and "failed 3 times" in suspended["reason"]
     assert any(e["event"] == "resumed" for e in ev)

@@ -8,6 +8,7 @@ process, as tests/acquisition/test_resume.py does.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import random
@@ -171,7 +172,10 @@ def test_stop_while_paused_for_a_burnt_lamp_skips_the_closing_reading(tmp_path, 
     assert kinds.index("suspended") < kinds.index("stop_requested") and "resumed" not in kinds
     assert end.first("stop_requested")["rig_time_s"] < end.first("suspended")["rig_time_s"] + 1800
     assert "illuminance" not in kinds[kinds.index("stop_requested"):]   # no light to read: no closing reading
-    assert 4 <= len(end.rows()) <= 5          # the point lit while the lamp failed may be discarded
+    # the points since the last passing lamp check may have been dark: discarded, no row measured after the burn-out
+    with open(end.folder / "brdf.csv", newline="") as fh:
+        measured_s = [float(r["rig_time_s"]) for r in csv.DictReader(fh)]
+    assert len(measured_s) <= 5 and all(t < burnt[0] for t in measured_s)
 
 
 def test_stop_while_waiting_for_the_illuminance_to_settle(tmp_path, paced):

@@ -4,9 +4,10 @@ import pytest
 
 from rig.acquisition.outcome import ending_of
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
-from rig.acquisition.suspenders import DeviceSilent, IlluminanceJump, LampOutOfTolerance, Retake
+from rig.acquisition.suspenders import DeviceSilent, IlluminanceJump, LampOutOfTolerance, Retake, install
 from rig.config.campaign import Lamp as WarmUp
-from rig.config.campaign import Suspenders
+from rig.config.campaign import Suspenders, parse_campaign
+from rig.config.rigfile import RigConfig
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading
@@ -61,9 +62,9 @@ class StepClock(Clock):
         self.t += seconds
 
 
-def lamp_suspender(lamp: Lamp, reference_v: float | None = 12.0) -> LampOutOfTolerance:
+def lamp_suspender(lamp: Lamp, reference_v: float | None = 12.0, clock: Clock | None = None) -> LampOutOfTolerance:
     tolerances = Suspenders(lamp_current_tolerance_rel=0.02, lamp_voltage_tolerance_rel=0.05)
-    return LampOutOfTolerance(lamp, 4.0, tolerances, lambda: reference_v)
+    return LampOutOfTolerance(lamp, 4.0, tolerances, lambda: reference_v, clock or StepClock())
 
 
 def test_lamp_suspender_names_a_burn_out_a_drifting_current_and_voltage():
@@ -74,7 +75,7 @@ def test_lamp_suspender_names_a_burn_out_a_drifting_current_and_voltage():
     assert lamp_suspender(Lamp(4.0, 13.0)).check() == "lamp voltage 13.000 V, 12.000 V after warm-up"
     assert lamp_suspender(Lamp(4.0, 13.0), reference_v=None).check() is None      # before the first warm-up
     s = lamp_suspender(Lamp(4.0, 12.0))
-    assert (s.retake, s.rewarm) == (Retake.LAST_POINT, True)
+    assert (s.retake, s.rewarm) == (Retake.SINCE_CHECK, True)
     for _ in range(10):
         s.discarded(["s0-p1"])           # no limit: a lamp fault is the lamp's, not the point's
     assert s.discards["s0-p1"] == 10
@@ -139,3 +140,38 @@ def test_one_place_decides_how_a_run_ended():
     failed = ending_of(DeviceError("lamp", "alarm"))
     assert (failed.status, failed.error, failed.message) == ("failed", "DeviceError: lamp: alarm", "lamp: alarm")
     assert (ending_of(SystemExit(3)).status, ending_of(SystemExit(3)).error) == ("failed", None)
+
+
+def test_the_lamp_is_checked_on_a_schedule_and_a_trip_takes_back_every_point_since_the_last_check():
+    """Polled before every point, the lamp is queried at most every CHECK_EVERY_S of rig time; a failed check
+    puts at risk every point since the last passing one, a passing check vouches for all of them."""
+    clock, lamp = StepClock(), Lamp(4.0, 12.0)
+    queries = []
+    lamp.measure_current_a = lambda: queries.append("I") or lamp.current_a
+    s = lamp_suspender(lamp, clock=clock)
+    for _ in range(3):                   # three points a second apart: one check, before the first
+        assert s.poll() is None
+        clock.sleep(1.0)
+    assert queries == ["I"] and s.at_risk(waiting=10) == 3 and s.at_risk(waiting=2) == 2
+    lamp.current_a = 0.0                 # burnt out during the third point
+    assert s.poll() is None and s.at_risk(10) == 4          # not due yet: the fourth point is at risk too
+    clock.sleep(s.CHECK_EVERY_S)
+    assert "burnt out" in s.poll() and s.at_risk(10) == 4   # due: the trip takes back all four
+    s.forget(4)
+    assert s.at_risk(10) == 0
+    lamp.current_a = 4.0
+    assert s.check() is None and s.poll() is None and s.at_risk(10) == 1     # checked: only the next point at risk
+
+
+def test_rows_appended_at_once_keep_the_lamp_checked_before_every_point():
+    """With `illuminance.correction: latest` no point waits to be taken back: no schedule."""
+    class Devices:
+        lamp, meter, clock = Lamp(4.0, 12.0), Meter(), StepClock()
+    base = {"name": "t", "sample": {"id": "S"}, "incidence": [{"phi": 0, "theta": [0]}],
+            "viewing": [{"centred_on": "normal", "theta": [10], "phi": [0]}]}
+    every_s = {}
+    for correction in ("interpolate", "latest"):
+        campaign = parse_campaign({**base, "illuminance": {"correction": correction}})
+        installed = install(campaign, RigConfig(), Devices(), lamp_reference_v=lambda: 12.0, wait=lambda s: None)
+        every_s[correction] = installed.polled[0].check_every_s
+    assert every_s == {"interpolate": LampOutOfTolerance.CHECK_EVERY_S, "latest": 0.0}

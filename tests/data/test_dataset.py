@@ -1,12 +1,14 @@
 """Dataset folder: contract columns, append-and-fsync rows, atomic manifest, refusals."""
 
 import csv
+import errno
 import json
 import os
+import threading
 
 import pytest
 
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset import DatasetWriter, DiskFullError
 from rig.data.dataset_format import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError
 from rig.planning.points import SkippedPoint
 
@@ -116,4 +118,40 @@ def test_refuses_non_finite_and_incomplete_rows(tmp_path):
     del bad["flags"]
     with pytest.raises(ValueError, match="lacks flags"):
         w.append_row(bad)
+    w.close()
+
+
+def test_an_event_synced_behind_is_written_at_once_and_on_disk_before_the_next_write(tmp_path, monkeypatch):
+    """`point_pending` records: written before the call returns (a killed process loses nothing), fsync'ed on
+    another thread, and every later write waits for that fsync, so what is on disk is a prefix of what was
+    written."""
+    w = DatasetWriter(tmp_path / "ds", {})
+    log = tmp_path / "ds" / "events.jsonl"
+    release, syncs = threading.Event(), []
+
+    def slow_fsync(fd):
+        release.wait(5.0)
+        syncs.append((fd, threading.current_thread() is threading.main_thread(), log.read_text().count("\n")))
+    monkeypatch.setattr(os, "fsync", slow_fsync)
+    w.event_synced_behind("point_pending", row={"point_id": "00-000"})
+    assert json.loads(log.read_text())["row"] == {"point_id": "00-000"} and syncs == []    # written, not yet synced
+    threading.Timer(0.05, release.set).start()
+    w.event("illuminance", value_lx=100.0)          # waits for the fsync in flight, then writes and syncs
+    assert [(main, lines) for _, main, lines in syncs] == [(False, 1), (True, 2)]
+    w.close()
+
+
+def test_a_failed_fsync_behind_cuts_its_line_and_fails_the_next_write(tmp_path, monkeypatch):
+    w = DatasetWriter(tmp_path / "ds", {})
+    w.event("devices")
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(os, "fsync", full)
+    w.event_synced_behind("point_pending", row={"point_id": "00-000"})
+    monkeypatch.undo()
+    with pytest.raises(DiskFullError, match="writing events.jsonl"):
+        w.event("illuminance")
+    kinds = [json.loads(line)["event"] for line in (tmp_path / "ds" / "events.jsonl").read_text().splitlines()]
+    assert kinds == ["devices"]
     w.close()
