@@ -53,7 +53,8 @@ def assert_same_merge(raw, darks, times):
 ], ids=["single", "bracket", "averaged", "unordered"])
 def test_fast_merge_equals_the_reference(shape, times, n_frames, n_darks):
     rng = np.random.default_rng(sum(shape) + len(times) + n_frames)
-    ref = assert_same_merge(*scene(rng, shape, times, n_frames, n_darks), times)
+    raw, darks = scene(rng, shape, times, n_frames, n_darks)
+    ref = assert_same_merge(raw, darks, times)
     if len(times) > 1:                         # the case covers saturated and clipped pixels and some unlit
         assert ref.saturated.any() and ref.clipped.any() and (ref.n_used == len(times)).any()
 
@@ -72,6 +73,44 @@ def test_fast_merge_equals_the_reference_on_float_frames_and_single_frames():
     times = [0.004, 0.032]
     raw, darks = scene(rng, (30, 40), times)
     assert_same_merge([r[0].astype(float) for r in raw], [d[0].astype(float) for d in darks], times)
+
+
+def test_fast_merge_equals_the_reference_on_views_cut_from_a_larger_window():
+    """The capture merges its ROI as strided views of the window's frame stacks, not as copies."""
+    rng = np.random.default_rng(13)
+    times = [0.002, 0.016]
+    raw, darks = scene(rng, (90, 120), times, n_frames=2)
+    roi = (slice(None), slice(10, 80), slice(25, 95))
+    ref = assert_same_merge([r[roi] for r in raw], [d[roi] for d in darks], times)
+    assert ref.rate_dn_s.shape == (70, 70)
+
+
+def test_fast_merge_equals_the_reference_with_frame_and_dark_counts_that_differ_between_exposures():
+    rng = np.random.default_rng(14)
+    times, n_frames, n_darks = [0.001, 0.008, 0.064], [1, 3, 2], [2, 1, 4]
+    rate = rng.lognormal(np.log(3e5), 2.0, (40, 50))
+    raw = [raw_stack(rng, rate, t, n, rate.shape) for t, n in zip(times, n_frames)]
+    darks = [raw_stack(rng, 0.0, t, m, rate.shape) for t, m in zip(times, n_darks)]
+    ref = assert_same_merge(raw, darks, times)
+    assert ref.saturated.any() and ref.clipped.any()
+
+
+def test_fast_merge_equals_the_reference_on_averaged_float32_stacks():
+    """Float frames (e.g. a driver that returns float32) take the float threshold and the float mean."""
+    rng = np.random.default_rng(15)
+    times = [0.004, 0.032]
+    raw, darks = scene(rng, (30, 40), times, n_frames=3, n_darks=2)
+    assert_same_merge([r.astype(np.float32) for r in raw], [d.astype(np.float32) for d in darks], times)
+
+
+def test_fast_merge_equals_the_reference_where_every_pixel_is_clipped():
+    """A block without a usable sample: every pixel falls back on the shortest exposure."""
+    rng = np.random.default_rng(16)
+    times = [0.02, 0.01, 0.04]
+    raw = [raw_stack(rng, 1.0e8, t, 2, (20, 30)) for t in times]
+    darks = [raw_stack(rng, 0.0, t, 1, (20, 30)) for t in times]
+    ref = assert_same_merge(raw, darks, times)
+    assert ref.clipped.all() and ref.saturated.all() and not ref.n_used.any()
 
 
 def test_samples_just_below_the_threshold_count_as_unsaturated_in_both():
