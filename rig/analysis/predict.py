@@ -17,7 +17,8 @@ Its uncertainty combines, in quadrature: the neighbours' u (weighted like the va
 correlated, which bounds them); within an incidence, the leave-one-out error of the neighbouring
 measured points (each interpolated from its own neighbours alone: an upper bound, since removing a point
 widens the spacing); between incidences, min(w, 1 − w)·|ln f₁ − ln f₂| of the two bracketing ones.
-Outside the domain it holds the nearest measured value (flagged `extrapolated`).
+Outside an incidence's hull it holds the value at the nearest point of the hull's boundary (flagged
+`extrapolated`).
 
 **model** (a fitted model: `rig fit --json`, or fitted on the spot). The value is the model's; its u
 combines, in quadrature: the parameters' covariance through the model's gradient (delta method, central
@@ -82,16 +83,28 @@ class _Incidence:
         b = np.einsum("mij,mj->mi", transform[:, :2], xy - transform[:, 2])
         weights = np.clip(np.concatenate([b, 1 - b.sum(axis=1, keepdims=True)], axis=1), 0.0, 1.0)
         weights /= weights.sum(axis=1, keepdims=True)
-        nearest = np.argmin(((self.mesh.points[None, :, :] - xy[:, None, :]) ** 2).sum(axis=2), axis=1)
-        near_w = np.zeros_like(weights)
-        near_w[:, 0] = 1.0
-        near_v = np.repeat(nearest[:, None], 3, axis=1)
-        weights = np.where(inside[:, None], weights, near_w)
-        vertices = np.where(inside[:, None], vertices, near_v)
+        if not inside.all():
+            edge, t = self._nearest_on_hull(xy[~inside])
+            vertices[~inside] = np.column_stack([edge, edge[:, 0]])
+            weights[~inside] = np.column_stack([1 - t, t, np.zeros_like(t)])
         log_f = (weights * self.log_f[vertices]).sum(axis=1)
         u_meas = (weights * self.u_rel[vertices]).sum(axis=1)
         u_interp = (weights * self.u_rel_interp[vertices]).sum(axis=1)
         return log_f, np.hypot(u_meas, u_interp), inside
+
+
+    def _nearest_on_hull(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For disk points outside the hull: the hull edge nearest to each (its two vertices, (M, 2)) and the
+        position t ∈ [0, 1] of the nearest point along it. Holding the value there extends the interpolant
+        continuously across the hull, as the nearest *vertex* would not: between two rim views the hull's chord
+        cuts off a sliver of grazing views, and the nearest vertex may be a view far along the rim in a lobe."""
+        edges = self.mesh.convex_hull
+        a, b = self.mesh.points[edges[:, 0]], self.mesh.points[edges[:, 1]]
+        ab = b - a
+        t = np.clip(np.einsum("mhk,hk->mh", xy[:, None, :] - a[None], ab) / np.einsum("hk,hk->h", ab, ab), 0.0, 1.0)
+        d2 = (((a[None] + t[..., None] * ab[None]) - xy[:, None, :]) ** 2).sum(axis=2)
+        k = np.argmin(d2, axis=1)
+        return edges[k], t[np.arange(len(k)), k]
 
 
 def _loo_errors(mesh: Delaunay, log_f: np.ndarray) -> np.ndarray:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import rig
@@ -58,7 +59,7 @@ def cmd_sampling(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sampling_bench.plot(results, out / "sampling.png")
     (out / "sampling.json").write_text(json.dumps({"machine": machine(), "campaign": str(path), "seed": args.seed,
-                                                   "results": [vars(r) for r in results], "verdicts": verdicts},
+                                                   "results": [asdict(r) for r in results], "verdicts": verdicts},
                                                   indent=2))
     print("\n".join(["", sampling_bench.format_results(results), *verdicts, f"plot and figures in {out}"]))
     return EXIT_OK

@@ -247,9 +247,10 @@ class SpecularAlignment(StrictModel):
 class Sampling(StrictModel):
     """Which geometries to measure. `table`: every (incidence, view) pair of the campaign's tables.
     `adaptive`: the tables are the candidate domain (each incidence entry's θ range filled at its finest step,
-    every view of the viewing patterns at each), and the rig measures a first pass (`mandatory` pairs, and
-    `first_pass_incidences` incidences spread over the range, `batch_points` views each), then one batch of
-    `batch_points` views at a time, at the incidence where the dataset's interpolant is least certain per second
+    every view of the viewing patterns at each, one of each view and its mirror image), and the rig measures a
+    first pass (`mandatory` pairs, and `first_pass_incidences` incidences spread over the range, up to
+    `batch_points` views each: by default the whole pattern), then one batch of up to `batch_points` views at a
+    time, at the incidence where the dataset's interpolant is least certain per second
     of rig time (travel and the E⊥ reading included), until the planned rig time after warm-up reaches
     `budget_rig_time_s` or the interpolant's relative u at every candidate is below `target_u_rel`
     (rig.analysis.adaptive; docs/sampling.md)."""
@@ -257,7 +258,7 @@ class Sampling(StrictModel):
     mode: Literal["table", "adaptive"] = "table"
     budget_rig_time_s: float | None = Field(None, gt=0, le=7 * DAY_S)
     target_u_rel: float | None = Field(None, gt=0, le=1)
-    batch_points: int = Field(48, ge=4, le=1000)
+    batch_points: int = Field(256, ge=4, le=1000)
     first_pass_incidences: int = Field(4, ge=2, le=50)
     #: (θi, φi, θo, φo) in degrees that are always measured (in the first pass), e.g. a standard geometry.
     mandatory: list[tuple[Annotated[float, Field(ge=0.0, lt=90.0)], Phi, Theta, Phi]] = Field(

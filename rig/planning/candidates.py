@@ -15,7 +15,7 @@ where it is least certain.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -55,8 +55,41 @@ def candidate_campaign(campaign: Campaign) -> Campaign:
 
 
 def candidate_plan(campaign: Campaign, rig: RigConfig) -> Plan:
-    """Every candidate in table order, planned (motors) or skipped with its reason; moves not checked."""
-    return table_plan(candidate_campaign(campaign), rig)
+    """Every candidate in table order, planned (motors) or skipped with its reason, one per isotropic pair
+    (`one_per_isotropic_pair`); moves not checked."""
+    plan = table_plan(candidate_campaign(campaign), rig)
+    return replace(plan, points=tuple(one_per_isotropic_pair(plan.points, set(_mandatory_matches(campaign, plan)))))
+
+
+def isotropic_key(p: PointAngles) -> tuple[float, float, float]:
+    """What an isotropic BRDF's value depends on: θi and the view in the incidence's folded projected disk
+    (rig.physics.geometry.disk_coordinates), rounded to 1e-6."""
+    x, y = geo.disk_coordinates(np.array([p.theta_o_deg]), np.array([p.phi_o_deg]), np.array([p.phi_i_deg]))[0]
+    return round(p.theta_i_deg, 6), round(float(x), 6), round(float(y), 6)
+
+
+def one_per_isotropic_pair(points: Sequence[PlannedPoint], keep: Collection[str] = ()) -> list[PlannedPoint]:
+    """The points less those an isotropic sample gives the same value as an earlier one: a view and its mirror
+    image in the plane of incidence (the viewing patterns are symmetric about it), and the same relative geometry
+    at another φi (the paper's φi = 23° and 45° series repeat the φi = 0° one). The interpolant, like the models,
+    assumes isotropy (rig.analysis.predict), so a second point at one pair would only repeat a measurement;
+    measuring both halves of the table costs twice the rig time for the same dataset. Points in `keep` (the
+    mandatory pairs) are kept, and their twins dropped instead."""
+    taken = {isotropic_key(p) for p in points if p.point_id in keep}
+    out = []
+    for p in points:
+        key = isotropic_key(p)
+        if p.point_id in keep:
+            out.append(p)
+        elif key not in taken:
+            taken.add(key)
+            out.append(p)
+    return out
+
+
+def _mandatory_matches(campaign: Campaign, plan: Plan) -> list[str]:
+    """Ids of the planned points at the mandatory pairs (those the rig can measure)."""
+    return [p.point_id for pair in campaign.sampling.mandatory for p in plan.points if _same_pair(p, pair)]
 
 
 def mandatory_ids(campaign: Campaign, candidates: Plan) -> list[str]:

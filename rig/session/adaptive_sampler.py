@@ -34,8 +34,6 @@ from rig.planning.points import Motors, Plan, PlannedPoint
 
 #: Planned rig time of one E⊥ reading (a few meter readings of ~0.1 s each).
 READING_S = 0.5
-#: A batch cut down to the budget is measured only if it keeps at least this many points.
-MIN_BATCH_POINTS = 4
 
 
 def planned_time_s(plan: Plan, rig: RigConfig) -> float:
@@ -55,6 +53,7 @@ class AdaptiveSampler:
         self.rig = rig
         self.zones = zones_of(rig)
         self.candidates = candidate_plan(campaign, rig)
+        self.candidate_ids = {p.point_id for p in self.candidates.points}
         in_batches = {pid for e in logged for pid in e["points"]}
         first_pass = replace(plan, points=tuple(p for p in plan.points if p.point_id not in in_batches))
         self.planned_s = planned_time_s(first_pass, rig) + sum(float(e["estimated_s"]) for e in logged)
@@ -77,21 +76,19 @@ class AdaptiveSampler:
         left_s = (spec.budget_rig_time_s - self.planned_s) if spec.budget_rig_time_s is not None else np.inf
         batch = choose_batch(rows, self.candidates, self.taken, position, self.rig.axes, self.zones,
                              batch_points=spec.batch_points, capture_s=NOMINAL_CAPTURE_S, reading_s=READING_S,
-                             loo_cache=self.loo_cache)
+                             max_s=left_s, loo_cache=self.loo_cache)
         reason = None
         if batch is None:
-            reason = "every candidate measured"
+            reason = (f"budget reached: {self.planned_s:.0f} s planned of {spec.budget_rig_time_s:g} s, and no batch "
+                      f"left fits in the rest" if not self.candidate_ids <= self.taken
+                      else "every candidate measured")
         elif spec.target_u_rel is not None and batch.max_u_rel <= spec.target_u_rel:
             reason = f"target reached: largest u/(f+τ) {batch.max_u_rel:.4f} ≤ {spec.target_u_rel:g}"
-        if reason is None and batch is not None:
-            points = self._within(list(batch.points), position, left_s)
-            if len(points) < MIN_BATCH_POINTS:
-                reason = f"budget reached: {self.planned_s:.0f} s planned of {spec.budget_rig_time_s:g} s"
         if reason is not None or batch is None:
             self.done = reason
             event("sampling_done", reason=reason, batches=self.batches, planned_rig_time_s=self.planned_s)
             return []
-        checked = drop_colliding_moves(Plan((), tuple(points), ()), self.rig.axes, self.zones, position)
+        checked = drop_colliding_moves(Plan((), batch.points, ()), self.rig.axes, self.zones, position)
         kept, unreachable = list(checked.points), [s.point_id for s in checked.skipped]
         estimated = self._estimate(kept, position)
         self.planned_s += estimated
@@ -102,19 +99,13 @@ class AdaptiveSampler:
               motors_deg=[list(p.motors_deg) for p in kept], unreachable=unreachable, estimated_s=estimated,
               planned_rig_time_s=self.planned_s, gain=batch.gain, score_per_s=batch.score_per_s,
               max_u_rel=batch.max_u_rel,
-              why=f"largest interpolant uncertainty per second: Σ(u/(f+τ))² {batch.gain:.3g} over "
+              why=f"largest interpolant uncertainty per second: Δθi·Σ(u/(f+τ))² {batch.gain:.3g} over "
                   f"{estimated:.0f} s at series {batch.series}")
         return kept
 
     def _estimate(self, points: Sequence[PlannedPoint], position: Motors) -> float:
         motors = np.array([p.motors_deg for p in points], float).reshape(-1, 4)
         return path_time_s(self.rig.axes, position, motors) + NOMINAL_CAPTURE_S * len(points) + READING_S
-
-    def _within(self, points: list[PlannedPoint], position: Motors, left_s: float) -> list[PlannedPoint]:
-        """The longest prefix of the batch (in travel order) whose planned time fits in what is left."""
-        while points and self._estimate(points, position) > left_s:
-            points = points[:-1]
-        return points
 
 
 def sampler_for(campaign: Campaign, rig: RigConfig, plan: Plan,

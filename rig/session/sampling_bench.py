@@ -28,7 +28,14 @@ import numpy as np
 
 from rig.acquisition.execute import execute
 from rig.analysis.predict import InterpolatingPredictor, measured_domain
-from rig.analysis.validation import Domain, TruthPredictor, representation_error, validation_set
+from rig.analysis.validation import (
+    Domain,
+    TruthPredictor,
+    ValidationSet,
+    log_errors,
+    representation_error,
+    validation_set,
+)
 from rig.config.campaign import Campaign, SimulatedBrdf
 from rig.config.rigfile import RigConfig, SimulationConfig
 from rig.data.dataset_reader import load
@@ -57,6 +64,8 @@ ROAD_SLACK_REL = 0.002
 #: ...and the p95 this much (in |ln|): a tenth of a percent, well below a point's own u (~0.3 %), which the
 #: validation cannot resolve (a smooth sample's error is its points' noise, whatever the sampling).
 P95_SLACK = 0.001
+#: A verdict that is not reached counts the points measured within this many degrees of θi of the worst pairs.
+NEAR_DEG = 5.0
 
 
 @dataclass(frozen=True)
@@ -68,6 +77,30 @@ class Result:
     wall_s: float
     errors: dict[str, float]      # RepresentationError.row()
     road_extrapolated: bool
+    worst: WorstPairs
+
+
+@dataclass(frozen=True)
+class WorstPairs:
+    """Where a dataset's worst 5 % of validation pairs lie: median θi and θo (degrees), the share of them the
+    interpolant can only extrapolate to (outside its measured views' hulls), and how many measured points lie
+    within NEAR_DEG of that θi."""
+
+    theta_i_deg: float
+    theta_o_deg: float
+    outside_hull: float
+    measured_near: int
+
+
+def worst_pairs(predictor: InterpolatingPredictor, truth: TruthPredictor, vset: ValidationSet, tau_per_sr: float,
+                measured_theta_i_deg: np.ndarray) -> WorstPairs:
+    a = vset.angles_deg
+    pred = predictor.predict(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
+    e = log_errors(pred.brdf_per_sr, truth.predict(a[:, 0], a[:, 1], a[:, 2], a[:, 3]).brdf_per_sr, tau_per_sr)
+    worst = e >= np.quantile(e, 0.95)
+    theta_i = float(np.median(a[worst, 0]))
+    return WorstPairs(theta_i, float(np.median(a[worst, 2])), float(np.mean(pred.extrapolated[worst])),
+                      int(np.sum(np.abs(measured_theta_i_deg - theta_i) <= NEAR_DEG)))
 
 
 def measuring_time_s(folder: Path) -> float:
@@ -104,9 +137,10 @@ def run_strategy(campaign: Campaign, rig: RigConfig, sample: str, strategy: str,
         ds = load(out)
         measured = np.stack([ds[c] for c in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg")], axis=1)
         vset = validation_set(domain, seed=seed, measured_deg=measured)
-        err = representation_error(InterpolatingPredictor(measured_domain(ds)), TruthPredictor(brdf.model,
-                                   brdf.params), vset, domain)
-        return Result(sample, strategy, len(ds), measuring_time_s(out), wall, err.row(), err.road_extrapolated)
+        predictor, truth = InterpolatingPredictor(measured_domain(ds)), TruthPredictor(brdf.model, brdf.params)
+        err = representation_error(predictor, truth, vset, domain)
+        return Result(sample, strategy, len(ds), measuring_time_s(out), wall, err.row(), err.road_extrapolated,
+                      worst_pairs(predictor, truth, vset, err.tau_per_sr, ds["theta_i_deg"]))
 
 
 def domain_of(campaign: Campaign, rig: RigConfig) -> Domain:
@@ -149,8 +183,16 @@ def verdict(results: Sequence[Result]) -> str:
     ok = [r for r in results if r.strategy.startswith("adaptive") and reached(r, base)]
     if not ok:
         worst = min((r for r in results if r.strategy.startswith("adaptive")), key=lambda r: -r.rig_time_s)
+        e, b = worst.errors, base.errors
+        region = max(("diffuse", "forward", "retro"), key=lambda g: e[f"{g}_p95"] - b[f"{g}_p95"])
         return (f"{base.sample}: NOT reached within the budgets tried: at {worst.rig_time_s / base.rig_time_s:.2f}× "
-                f"the p95 is {worst.errors['all_p95']:.4f} against the baseline's {base.errors['all_p95']:.4f}")
+                f"the p95 is {e['all_p95']:.4f} against the baseline's {b['all_p95']:.4f}. Why: the excess is in the "
+                f"{region} region (p95 {e[f'{region}_p95']:.4f} against {b[f'{region}_p95']:.4f}); its worst 5 % lie "
+                f"at θi ≈ {worst.worst.theta_i_deg:.0f}°, θo ≈ {worst.worst.theta_o_deg:.0f}° (medians), "
+                f"{worst.worst.outside_hull:.0%} of them outside the measured views' hulls, with "
+                f"{worst.worst.measured_near} points measured within {NEAR_DEG:g}° of that θi (baseline: "
+                f"{base.worst.outside_hull:.0%} outside, {base.worst.measured_near} points near its worst, at "
+                f"θi ≈ {base.worst.theta_i_deg:.0f}°, θo ≈ {base.worst.theta_o_deg:.0f}°)")
     best = min(ok, key=lambda r: r.rig_time_s)
     ratio = best.rig_time_s / base.rig_time_s
     return (f"{base.sample}: baseline reached by {best.strategy} in {ratio:.3f}× its rig time "

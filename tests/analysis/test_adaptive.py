@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS
-from rig.analysis.adaptive import binned, choose_batch, spread_by_gain
+from rig.analysis.adaptive import (binned, choose_batch, represented_width_deg, rows_dataset, spread_by_gain,
+                                   theta_curvature_u)
+from rig.analysis.predict import measured_domain
+from rig.physics import geometry as geo
 from rig.analysis.validation import TruthPredictor
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
@@ -61,3 +64,29 @@ def test_the_next_batch_is_deterministic_under_measurement_noise():
 def test_no_batch_once_every_candidate_is_measured():
     everything = candidate_plan(CAMPAIGN, RIG).points
     assert batch_after(rows_of(everything), {p.point_id for p in everything}) is None
+
+
+def test_the_bend_in_theta_i_is_what_linear_interpolation_leaves_out():
+    """ln f = 1e-3·θi² on every view: the quadratic through 20, 40 and 60° is exact, so the bend at θi between two
+    measured incidences is 1e-3·(θ − 20)(40 − θ) (0.1 at 30°), and nothing at a measured incidence."""
+    candidates = candidate_plan(CAMPAIGN, RIG).points
+    measured = [p for p in candidates if any(p.theta_i_deg == pytest.approx(t) for t in (20.0, 40.0, 60.0))]
+    rows = [{"point_id": p.point_id, "brdf_per_sr": float(np.exp(1e-3 * p.theta_i_deg ** 2)), "u_brdf_per_sr": 0.0,
+             "flags": ""} for p in measured]
+    domain = measured_domain(rows_dataset(rows, {p.point_id: p for p in candidates}))
+    at = [p for p in candidates if any(p.theta_i_deg == pytest.approx(t) for t in (25.0, 30.0, 40.0, 55.0))]
+    theta = np.array([p.theta_i_deg for p in at])
+    xy = geo.disk_coordinates(np.array([p.theta_o_deg for p in at]), np.array([p.phi_o_deg for p in at]),
+                              np.array([p.phi_i_deg for p in at]))
+    expected = np.where(theta < 40, 1e-3 * (theta - 20) * (40 - theta), 1e-3 * (theta - 40) * (60 - theta))
+    assert theta_curvature_u(domain, theta, xy) == pytest.approx(expected, abs=1e-9)
+    assert expected[np.isclose(theta, 30.0)] == pytest.approx(0.1)
+
+
+def test_a_series_stands_for_half_the_gap_to_its_measured_neighbours():
+    measured = np.array([0.0, 30.0, 60.0, 85.0])
+    assert represented_width_deg(measured, 45.0, (0.0, 85.0)) == pytest.approx(15.0)
+    assert represented_width_deg(measured, 30.0, (0.0, 85.0)) == pytest.approx(30.0)
+    assert represented_width_deg(measured, 0.0, (0.0, 85.0)) == pytest.approx(15.0)
+    assert represented_width_deg(measured, 85.0, (0.0, 85.0)) == pytest.approx(12.5)
+    assert represented_width_deg(np.array([]), 40.0, (40.0, 40.0)) == pytest.approx(1.0)   # the least width

@@ -195,3 +195,16 @@ def test_between_incidences_the_interpolant_follows_the_lobes():
     assert out[2] == pytest.approx([0.0, 0.0]) and out[3] == pytest.approx([0.0, 1.0])
     assert np.hypot(*out[4]) == pytest.approx(1.0)
     assert lobe_aligned(xy, np.full(5, 40.0), 40.0) == pytest.approx(xy)
+
+
+def test_outside_the_hull_the_interpolant_holds_the_value_at_the_nearest_point_of_its_edge():
+    """ln f linear along the plane of incidence; a grazing view between the 30° and 60° rim views of the
+    measured θo ≤ 70° hull lies nearest the middle of that edge: the value there is the mean of the two
+    vertices' ln f, where the nearest vertex would give one of them."""
+    def tilted(theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg):
+        return 0.2 * np.exp(0.5 * np.sin(np.radians(theta_o_deg)) * np.cos(np.radians(phi_o_deg - phi_i_deg)))
+    p = InterpolatingPredictor(measured_domain(dataset(tilted))).predict(20.0, 0.0, 80.0, 45.0)
+    rim = np.sin(np.radians(70.0))
+    edge_mid_x = rim * (np.cos(np.radians(30.0)) + np.cos(np.radians(60.0))) / 2
+    assert bool(p.extrapolated)
+    assert float(p.brdf_per_sr) == pytest.approx(0.2 * np.exp(0.5 * edge_mid_x), rel=1e-9)

@@ -7,7 +7,9 @@ from repo_paths import TEST_CAMPAIGNS
 from rig.config.campaign import CampaignError, load_campaign
 from rig.config.rigfile import RigConfig
 from rig.physics import geometry as geo
-from rig.planning.candidates import candidate_plan, filled_thetas, first_pass, mandatory_ids, spread_views
+from rig.planning.candidates import (candidate_plan, filled_thetas, first_pass, isotropic_key, mandatory_ids,
+                                    one_per_isotropic_pair, spread_views)
+from rig.planning.table import table_plan
 from rig.planning.plan import build_plan
 
 CAMPAIGN = load_campaign(TEST_CAMPAIGNS / "e2e-adaptive.yaml")
@@ -62,3 +64,31 @@ def test_a_mandatory_pair_the_rig_cannot_measure_is_refused_by_name():
         update={"mandatory": [(30.0, 0.0, 30.0, 0.0)]})})                  # looking into the lamp
     with pytest.raises(CampaignError, match=r"sampling.mandatory\[0\].*lamp housing"):
         build_plan(bad, RigConfig())
+
+
+def test_a_view_and_its_mirror_image_are_one_candidate():
+    """The viewing patterns are symmetric about the plane of incidence; an isotropic BRDF (which the interpolant
+    assumes) has one value for a view and its mirror image, so only the first is a candidate."""
+    rig = RigConfig()
+    table = table_plan(CAMPAIGN.model_copy(update={"sampling": CAMPAIGN.sampling.model_copy(
+        update={"mandatory": []})}), rig).points
+    at_40 = [p for p in table if p.theta_i_deg == pytest.approx(40.0)]
+    kept = one_per_isotropic_pair(at_40)
+    mirrored = {(round(p.theta_o_deg, 6), round(float(geo.wrap_360(-p.phi_o_deg)), 6)) for p in kept}
+    assert 0.45 * len(at_40) < len(kept) < 0.7 * len(at_40)        # pairs (0 and 180° are their own images)
+    assert len({isotropic_key(p) for p in kept}) == len(kept) == len({isotropic_key(p) for p in at_40})
+    assert any((round(p.theta_o_deg, 6), round(p.phi_o_deg, 6)) in mirrored for p in at_40 if p not in kept)
+    assert [p.point_id for p in kept] == sorted((p.point_id for p in kept), key=[q.point_id for q in at_40].index)
+
+
+def test_a_mandatory_pair_is_kept_and_its_mirror_image_dropped():
+    rig = RigConfig()
+    bare = CAMPAIGN.model_copy(update={"sampling": CAMPAIGN.sampling.model_copy(update={"mandatory": []})})
+    at_40 = [p for p in candidate_plan(bare, rig).points if p.theta_i_deg == pytest.approx(40.0)]
+    first = next(p for p in at_40 if 10 < geo.wrap_360(p.phi_o_deg) < 170 and p.theta_o_deg > 5)
+    mirror = (40.0, 0.0, first.theta_o_deg, float(geo.wrap_360(-first.phi_o_deg)))       # later in the table
+    twin = CAMPAIGN.model_copy(update={"sampling": CAMPAIGN.sampling.model_copy(update={"mandatory": [mirror]})})
+    candidates = candidate_plan(twin, rig)
+    (pid,) = mandatory_ids(twin, candidates)
+    assert pid != first.point_id
+    assert [p.point_id for p in candidates.points if isotropic_key(p) == isotropic_key(first)] == [pid]
