@@ -30,10 +30,10 @@ def rows_of(points, noise_rel=0.0, seed=0):
     return rows
 
 
-def batch_after(rows, measured):
+def batch_after(rows, measured, max_s=np.inf):
     plan = build_plan(CAMPAIGN, RIG)
     return choose_batch(rows, candidate_plan(CAMPAIGN, RIG), measured, plan.points[-1].motors_deg, RIG.axes,
-                        zones_of(RIG), batch_points=8, capture_s=0.05, reading_s=0.5)
+                        zones_of(RIG), batch_points=8, capture_s=0.05, reading_s=0.5, max_s=max_s)
 
 
 def test_bins_are_quarter_octaves():
@@ -90,3 +90,14 @@ def test_a_series_stands_for_half_the_gap_to_its_measured_neighbours():
     assert represented_width_deg(measured, 0.0, (0.0, 85.0)) == pytest.approx(15.0)
     assert represented_width_deg(measured, 85.0, (0.0, 85.0)) == pytest.approx(12.5)
     assert represented_width_deg(np.array([]), 40.0, (40.0, 40.0)) == pytest.approx(1.0)   # the least width
+
+
+def test_only_a_batch_that_fits_in_what_is_left_is_chosen():
+    """A batch is never cut (a part of a pattern leaves a lopsided hull): one that does not fit is passed over."""
+    first = build_plan(CAMPAIGN, RIG).points
+    rows, measured = rows_of(first), {p.point_id for p in first}
+    best = batch_after(rows, measured)
+    assert best is not None
+    fitting = batch_after(rows, measured, max_s=best.estimated_s - 1e-6)
+    assert fitting is None or (fitting.estimated_s < best.estimated_s and fitting.series != best.series)
+    assert batch_after(rows, measured, max_s=0.4) is None                   # not even the E⊥ reading fits
