@@ -93,7 +93,8 @@ def test_dataset_doc_lists_the_columns_in_order_with_their_units():
 
 def event_kinds_in_code() -> set[str]:
     """Every event kind rig, its drivers and simulators write to events.jsonl (first literal argument)."""
-    call = re.compile(r'(?:\bevent|\bevents|\bon_retry|\bevent_synced_behind)\(\s*"(\w+)"(?:\s+if\s+[^,]*?\s+else\s+"(\w+)")?')
+    call = re.compile(r'(?:\bevent|\bevents|\bon_retry|\bevent_synced_behind)\('
+                      r'\s*"(\w+)"(?:\s+if\s+[^,]*?\s+else\s+"(\w+)")?')
     return {kind for folder in ("rig", "drivers", "simulators") for path in (ROOT / folder).rglob("*.py")
             for match in call.finditer(path.read_text(encoding="utf-8")) for kind in match.groups() if kind}
 

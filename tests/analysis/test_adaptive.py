@@ -4,13 +4,19 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS
-from rig.analysis.adaptive import (binned, choose_batch, represented_width_deg, rows_dataset, spread_by_gain,
-                                   theta_curvature_u)
+from rig.analysis.adaptive import (
+    binned,
+    choose_batch,
+    represented_width_deg,
+    rows_dataset,
+    spread_by_gain,
+    theta_curvature_u,
+)
 from rig.analysis.predict import measured_domain
-from rig.physics import geometry as geo
 from rig.analysis.validation import TruthPredictor
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
+from rig.physics import geometry as geo
 from rig.planning.candidates import candidate_plan
 from rig.planning.collisions import zones_of
 from rig.planning.plan import build_plan

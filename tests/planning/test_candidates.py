@@ -7,10 +7,17 @@ from repo_paths import TEST_CAMPAIGNS
 from rig.config.campaign import CampaignError, load_campaign
 from rig.config.rigfile import RigConfig
 from rig.physics import geometry as geo
-from rig.planning.candidates import (candidate_plan, filled_thetas, first_pass, isotropic_key, mandatory_ids,
-                                    one_per_isotropic_pair, spread_views)
-from rig.planning.table import table_plan
+from rig.planning.candidates import (
+    candidate_plan,
+    filled_thetas,
+    first_pass,
+    isotropic_key,
+    mandatory_ids,
+    one_per_isotropic_pair,
+    spread_views,
+)
 from rig.planning.plan import build_plan
+from rig.planning.table import table_plan
 
 CAMPAIGN = load_campaign(TEST_CAMPAIGNS / "e2e-adaptive.yaml")
 
