@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import signal
 import sys
 from pathlib import Path
 
@@ -31,14 +32,18 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         fail(f"cannot serve on {args.host}:{args.port}: {exc.strerror or exc}"
              + (" (another program uses the port: choose another with --port)" if in_use else ""))
         return EXIT_FAILED
-    print(f"rig monitor: {folder} at {page_url(server, token)} (read-only; Ctrl+C stops it)", file=sys.stderr,
-          flush=True)
-    if token:
-        print(f"rig monitor: access token {token} (required on {args.host}: give the whole address above)",
-              file=sys.stderr, flush=True)
-    if not folder.exists():
-        print(f"rig monitor: waiting for {folder} to appear (the run creates it)", file=sys.stderr, flush=True)
+    # Ctrl+C and SIGTERM stop it, even where the shell started it with SIGINT ignored (a background job of a
+    # script inherits that, and Python then raises no KeyboardInterrupt): as `rig run`, it installs its own.
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.default_int_handler)
     try:
+        print(f"rig monitor: {folder} at {page_url(server, token)} (read-only; Ctrl+C stops it)", file=sys.stderr,
+              flush=True)
+        if token:
+            print(f"rig monitor: access token {token} (required on {args.host}: give the whole address above)",
+                  file=sys.stderr, flush=True)
+        if not folder.exists():
+            print(f"rig monitor: waiting for {folder} to appear (the run creates it)", file=sys.stderr, flush=True)
         server.serve_forever(poll_interval=0.2)
     except KeyboardInterrupt:
         print("\nrig monitor: stopped", file=sys.stderr)

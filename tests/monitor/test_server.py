@@ -162,3 +162,23 @@ def test_another_address_prints_a_token_that_is_required_and_ctrl_c_stops(tmp_pa
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=HANG_S)
     assert proc.returncode == 0 and "stopped" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_it_even_when_started_with_sigint_ignored(tmp_path, sig):
+    """A background job of a script starts with SIGINT ignored, and Python then raises no KeyboardInterrupt:
+    `rig monitor` installs its own handlers before it prints its address (CI once hung here for 120 s)."""
+    script = ("import sys; from rig.cli.monitor import add_subcommand; import argparse; "
+              "p = argparse.ArgumentParser(); add_subcommand(p.add_subparsers()); "
+              "a = p.parse_args(sys.argv[1:]); sys.exit(a.func(a))")
+    proc = subprocess.Popen([sys.executable, "-c", script, "monitor", str(tmp_path / "later"), "--port", "0"],
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert proc.stderr is not None
+    try:
+        assert "rig monitor:" in proc.stderr.readline()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=HANG_S)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0 and "stopped" in err
