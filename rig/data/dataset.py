@@ -13,13 +13,14 @@ import json
 import os
 import shutil
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from rig.data import append_log
+from rig.data.append_log import AppendLog
 from rig.data.dataset_format import (
     BRDF_COLUMNS,
     CONVENTIONS,
@@ -70,7 +71,7 @@ def write_json_atomic(path: Path, data: Mapping[str, Any]) -> None:
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o644)
         try:
-            _write_all(fd, text.encode("utf-8"))
+            append_log.write_all(fd, text.encode("utf-8"))
             os.fsync(fd)
         finally:
             os.close(fd)
@@ -79,13 +80,6 @@ def write_json_atomic(path: Path, data: Mapping[str, Any]) -> None:
         raise
     os.replace(tmp, path)
     _fsync_dir(path.parent)
-
-
-def _write_all(fd: int, data: bytes) -> None:
-    """os.write until every byte is written (a write may be short); the only low-level write of this module."""
-    view = memoryview(data)
-    while view:
-        view = view[os.write(fd, view):]
 
 
 def _json_default(obj: Any) -> Any:
@@ -98,78 +92,7 @@ def _json_default(obj: Any) -> Any:
     raise TypeError(f"cannot store {type(obj).__name__} in JSON")
 
 
-class _AppendLog:
-    """A line-oriented file whose every line is on disk before append() returns (or, appended with
-    `sync_behind`, before the next append starts).
-
-    A failed append (a full disk) is undone by truncating to the previous length, so the file
-    never ends in half a line that later lines would be glued to.
-    """
-
-    def __init__(self, path: Path):
-        self.path = path
-        self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        self._size = os.fstat(self._fd).st_size
-        self._syncer: ThreadPoolExecutor | None = None
-        self._behind: tuple[Future[None], int] | None = None     # the fsync in flight, the size before its line
-
-    def append(self, line: str, *, sync_behind: bool = False) -> None:
-        """Write `line`; fsync it before returning, or with `sync_behind` on a background thread.
-
-        Behind: the line is written before this returns, so a process that is killed loses nothing
-        (the kernel holds it), while the fsync (milliseconds on a busy disk) overlaps the caller's next work. Only a
-        power cut or a kernel crash during that fsync can lose the line, and nothing written after it: every append
-        first waits for the fsync in flight, so what is on disk is always a prefix of what was written. A failed
-        background fsync undoes its line and raises here, at the next append (or at `settle`)."""
-        self.settle()
-        data = line.encode("utf-8")
-        try:
-            _write_all(self._fd, data)
-            if not sync_behind:
-                os.fsync(self._fd)
-        except OSError:
-            self._truncate(self._size)
-            raise
-        if sync_behind:
-            if self._syncer is None:
-                self._syncer = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"fsync {self.path.name}")
-            self._behind = (self._syncer.submit(os.fsync, self._fd), self._size)
-        self._size += len(data)
-
-    def settle(self) -> None:
-        """Wait for the fsync in flight, if any; its OSError is raised here after its line was cut off."""
-        if self._behind is None:
-            return
-        sync, size_before = self._behind
-        self._behind = None
-        try:
-            sync.result()
-        except OSError:
-            self._truncate(size_before)
-            self._size = size_before
-            raise
-
-    def _truncate(self, size: int) -> None:
-        try:
-            os.ftruncate(self._fd, size)
-        except OSError:
-            pass     # nothing better to do; a reader ignores a torn last line
-
-    def close(self) -> None:
-        """Close the file after the fsync in flight (whose failure is no longer anyone's to handle)."""
-        try:
-            self.settle()
-        except OSError:
-            pass
-        if self._syncer is not None:
-            self._syncer.shutdown()
-            self._syncer = None
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
-
-
-def _append(log: _AppendLog | None, line: str, *, sync_behind: bool = False) -> None:
+def _append(log: AppendLog | None, line: str, *, sync_behind: bool = False) -> None:
     """Append to a writer's log; its logs are open from the constructor (or `reopen`) until `close`."""
     if log is None:
         raise RuntimeError("the dataset writer's files are not open")
@@ -228,8 +151,8 @@ class DatasetWriter:
         self.dir = Path(out_dir)
         self.space_needed_bytes = space_needed_bytes
         self._lock = FolderLock(self.dir)
-        self._rows: _AppendLog | None = None
-        self._events: _AppendLog | None = None
+        self._rows: AppendLog | None = None
+        self._events: AppendLog | None = None
         self.disk_full = False
         self.unwritten_rows = 0
         self.n_rows = 0
@@ -288,14 +211,14 @@ class DatasetWriter:
         return self
 
     def _open_logs(self) -> None:
-        self._rows = _AppendLog(self.dir / "brdf.csv")
-        self._events = _AppendLog(self.dir / "events.jsonl")
+        self._rows = AppendLog(self.dir / "brdf.csv")
+        self._events = AppendLog(self.dir / "events.jsonl")
 
     def _make_reserve(self) -> None:
         """Set RESERVE_BYTES aside (zeros, really allocated) for the records of a full disk."""
         fd = os.open(self.dir / RESERVE_NAME, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o644)
         try:
-            _write_all(fd, bytes(RESERVE_BYTES))
+            append_log.write_all(fd, bytes(RESERVE_BYTES))
             os.fsync(fd)
         finally:
             os.close(fd)
@@ -379,7 +302,7 @@ class DatasetWriter:
         self._event(kind, fields, sync_behind=False)
 
     def event_synced_behind(self, kind: str, **fields: Any) -> None:
-        """Append an event that is written when this returns and fsync'ed on a background thread (`_AppendLog.append`):
+        """Append an event that is written when this returns and fsync'ed on a background thread (`AppendLog.append`):
         for the record of every point (`point_pending`), where a synchronous fsync cost the pipeline milliseconds a
         point. A killed process loses nothing; a power cut at most this record (its point is measured again on
         resume), never one written after it. A failed fsync raises at the next write (DiskFullError alike)."""

@@ -2,7 +2,7 @@
 clean failure during the run (one line naming the folder and the space needed, the rig made safe,
 status `failed` when it can be written, the completed rows intact), then `--resume` completes.
 
-ENOSPC is injected at the writer's one low-level write (`rig.data.dataset._write_all`) during an
+ENOSPC is injected at the writer's one low-level write (`rig.data.append_log.write_all`) during an
 in-process run on the simulated rig; a real small filesystem (tmpfs, needs root) is used where
 mounting is permitted, and skipped with the reason otherwise.
 """
@@ -25,6 +25,7 @@ from rig.acquisition import diskspace
 from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
+from rig.data import append_log
 from rig.data import dataset as ds_module
 from rig.data.dataset import DatasetWriter, DiskFullError
 from rig.data.dataset_reader import load
@@ -62,7 +63,7 @@ class Fuse:
 
     def __init__(self, rows: int, fail: tuple[str, ...]):
         self.rows, self.fail, self.written_rows, self.blown = rows, fail, -1, False   # -1: the header
-        self._real = ds_module._write_all
+        self._real = append_log.write_all
 
     def __call__(self, fd: int, data: bytes) -> None:
         name = Path(os.readlink(f"/proc/self/fd/{fd}")).name
@@ -83,7 +84,7 @@ def test_enospc_mid_run_is_a_clean_failure_and_resume_completes(tmp_path, monkey
                                                                  fail, status):
     out = tmp_path / "ds"
     fuse = Fuse(rows=20, fail=fail)
-    monkeypatch.setattr(ds_module, "_write_all", fuse)
+    monkeypatch.setattr(append_log, "write_all", fuse)
     assert main(["run", str(CAMPAIGN), "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert "Traceback" not in "\n".join(err)
@@ -100,7 +101,7 @@ def test_enospc_mid_run_is_a_clean_failure_and_resume_completes(tmp_path, monkey
     assert len(load(out)) == len(kept) and (out / "brdf.csv").read_bytes().endswith(b"\n")   # lines, once each
     assert not (out / ".reserve").exists()
 
-    monkeypatch.setattr(ds_module, "_write_all", fuse._real)        # space freed
+    monkeypatch.setattr(append_log, "write_all", fuse._real)        # space freed
     assert main(["run", "--resume", str(out), "--quiet"]) == 0
     assert sorted(ids(out)) == planned_ids
     assert manifest(out)["status"] == "complete"
@@ -112,7 +113,7 @@ def test_first_enospc_raises_then_writes_are_best_effort(tmp_path, monkeypatch):
 
     def full(fd, data):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-    monkeypatch.setattr(ds_module, "_write_all", full)
+    monkeypatch.setattr(append_log, "write_all", full)
     with pytest.raises(DiskFullError, match=r"ds: the disk is full \(writing events.jsonl; .* free, about .* more"):
         writer.event("x")
     assert not (tmp_path / "ds" / ".reserve").exists()              # freed for the final records
@@ -126,7 +127,7 @@ def test_first_enospc_raises_then_writes_are_best_effort(tmp_path, monkeypatch):
 def test_no_space_to_start_leaves_no_folder(tmp_path, monkeypatch):
     def full(fd, data):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-    monkeypatch.setattr(ds_module, "_write_all", full)
+    monkeypatch.setattr(append_log, "write_all", full)
     with pytest.raises(DiskFullError, match="nothing was written"):
         DatasetWriter(tmp_path / "a" / "ds", {"campaign": {"name": "x"}})
     assert not (tmp_path / "a").exists()
