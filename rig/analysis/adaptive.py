@@ -38,13 +38,12 @@ from rig.config.rigfile import AxesConfig
 from rig.config.zones import ForbiddenZone
 from rig.data.dataset_reader import Dataset
 from rig.physics import geometry as geo
+from rig.planning.candidates import SAME_THETA_DEG
 from rig.planning.ordering import order_plan, path_time_s
 from rig.planning.points import Motors, Plan, PlannedPoint
 
 #: u/(f + τ) of a candidate the interpolant can only extrapolate to (outside the measured hull or θi range).
 EXTRAPOLATED_U_REL = 0.3
-#: Measured θi closer than this (degrees) are the same incidence (as rig.planning.candidates).
-SAME_THETA_DEG = 1e-6
 #: The least span of θi (degrees) a series stands for (a candidate range of one incidence).
 MIN_WIDTH_DEG = 1.0
 #: A taken view damps the gain of candidates within this distance in the projected disk by (d/r)².
