@@ -4,11 +4,12 @@ Wall time depends on the machine and its load, so each figure is printed with a 
 measured in the same run (issue 17's targets are printed next to them; the script reports,
 it does not fail):
 
-- merge: `merge_exposures` (the rig's) and `merge_exposures_reference` (its float64
-  definition) on 3 exposures of a full simulated frame, against a plain copy of the same
-  frames; best of --repeat. Targets: ≤ 20 ms and ≤ 60× the copy. Also the first call in a
-  fresh process (importing `rig.physics.hdr`, then the first merge, which imports OpenCV for
-  the dark's median), the cost a `rig run` pays once.
+- merge: `merge_exposures` (the rig's: the compiled kernel where the install built it), its
+  numpy fallback and `merge_exposures_reference` (its float64 definition) on 3 exposures of a
+  full simulated frame, against a plain copy of the same frames; best of --repeat. Targets:
+  ≤ 20 ms and ≤ 60× the copy. Also the first call in a fresh process (importing
+  `rig.physics.hdr`, then the first merge, which imports OpenCV for the dark's median),
+  the cost a `rig run` pays once.
 - campaign: campaigns/quick.yaml run with `capture.save_images: true` and without, each
   into a temporary folder through `rig run`. Target: ≤ 3× the wall time without images.
 
@@ -33,6 +34,7 @@ sys.path.insert(0, str(ROOT))
 
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
+from rig.physics import hdr  # noqa: E402
 from rig.physics.hdr import merge_exposures, merge_exposures_reference  # noqa: E402
 from rig.session.bench import best_of, machine  # noqa: E402
 
@@ -94,11 +96,16 @@ def merge_figures(repeat: int) -> None:
     merge_exposures(raw, darks, EXPOSURES_S, sensor)                  # warm-up: the histogram's import
     fast = best_of(lambda: merge_exposures(raw, darks, EXPOSURES_S, sensor), repeat)
     reference = best_of(lambda: merge_exposures_reference(raw, darks, EXPOSURES_S, sensor), max(repeat // 4, 2))
+    kernel, hdr._merge_kernel = hdr._merge_kernel, None       # the numpy merge of an install without a C compiler
+    fallback = best_of(lambda: merge_exposures(raw, darks, EXPOSURES_S, sensor), max(repeat // 4, 2))
+    hdr._merge_kernel = kernel
     first = first_call_s(raw, darks)
     print(f"merge of {len(raw)} exposures of {cfg.camera.width_px}×{cfg.camera.height_px} (best of {repeat}):")
     print(f"  copy of the frames       {copy * 1e3:8.2f} ms")
     print(f"  reference merge          {reference * 1e3:8.2f} ms   {reference / fast:6.1f}× the fast merge")
-    print(f"  fast merge               {fast * 1e3:8.2f} ms   {fast / copy:6.1f}× the copy   "
+    print(f"  numpy merge (no C build) {fallback * 1e3:8.2f} ms   {fallback / fast:6.1f}× the fast merge")
+    label = f"fast merge, {'compiled' if kernel else 'numpy'}"
+    print(f"  {label:<24s} {fast * 1e3:8.2f} ms   {fast / copy:6.1f}× the copy on {hdr._workers()} CPUs   "
           f"targets ≤ {MERGE_TARGET_S * 1e3:.0f} ms, ≤ {MERGE_TARGET_COPIES:.0f}× the copy"
           f"{'' if fast <= MERGE_TARGET_S and fast / copy <= MERGE_TARGET_COPIES else '  (missed)'}")
     print(f"  fresh process: import    {first['import_s'] * 1e3:8.2f} ms   then first merge "

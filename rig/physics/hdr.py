@@ -7,21 +7,30 @@ combination weights each by the inverse of its variance (EMVA 1288 noise model),
 which is why this merge, unlike OpenCV's Debevec/Robertson merges, has a known
 variance per pixel that the uncertainty budget can use.
 
-`merge_exposures` is the one the rig uses: it merges a full frame near the speed
-of reading it, block by block of rows in float32 (see its Notes).
-`merge_exposures_reference` states the same merge in whole-array numpy, in float64;
-the tests and benchmarks/merge_speed.py hold the fast one to it.
+`merge_exposures` is the one the rig uses: it merges in float32, one pass over
+the frames by the compiled kernel `_merge_kernel.c` (one band of rows per CPU on a
+full frame), or, where the package was installed without a C compiler, block by
+block of rows in numpy (see its Notes). `merge_exposures_reference` states the same
+merge in whole-array numpy, in float64; the tests and benchmarks/merge_speed.py hold
+both fast ones to it.
 """
 
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from rig.core.values import SensorInfo
+
+try:
+    from rig.physics import _merge_kernel
+except ImportError:            # installed without a C compiler: the numpy block merge below does it all
+    _merge_kernel = None  # type: ignore[assignment]
 
 #: Fraction of the range above black level given up below full scale: sensors bend
 #: before they clip, so samples this close to full scale are not trusted.
@@ -34,6 +43,10 @@ REWEIGHT_PASSES = 2
 #: Pixels merged at a time: a block's dozen float32 working arrays (~3 MB) stay in
 #: the CPU's cache, so the frames are read from memory once, whatever the passes.
 BLOCK_PX = 1 << 16
+#: Frames of at least this many pixels are merged by the compiled kernel in one band of rows per CPU.
+PARALLEL_MIN_PX = 1 << 16
+#: What the compiled kernel reads (the buffer formats 'H', 'f', 'd').
+_KERNEL_DTYPES = (np.dtype(np.uint16), np.dtype(np.float32), np.dtype(np.float64))
 #: Dark frames of at least this many pixels get their median from a histogram (OpenCV),
 #: 20× faster than numpy's partition on a full frame; smaller ones use np.median.
 HISTOGRAM_MEDIAN_MIN_PX = 1 << 16
@@ -141,11 +154,13 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     (the rest, var X̂ − var_dark, is the frames' own noise).
 
     Speed: the weight is rewritten wₖ = aₖ/(max(X̂, 0) + bₖ), aₖ = nₖtₖ/K and
-    bₖ = (K D + ρ² + nₖδₖ)/(K tₖ), two operations per pixel, and the window is merged
-    BLOCK_PX pixels at a time, every pass on a block while it is in the cache. The
-    working arrays are float32: frame sums of integer DN are exact in float32, and
-    the rounding of a mean (2⁻²⁴ relative, < 3·10⁻⁴ DN) is a thousandth of the
-    quantisation noise (0.29 DN). The outputs are float32 too.
+    bₖ = (K D + ρ² + nₖδₖ)/(K tₖ), two operations per pixel. The compiled kernel
+    runs every pass on a pixel in registers, a row at a time, with the GIL released
+    (`_merge_compiled`); the numpy fallback merges BLOCK_PX pixels at a time, every
+    pass on a block while it is in the cache. Both work in float32: frame sums of
+    integer DN are exact in float32, and the rounding of a mean (2⁻²⁴ relative,
+    < 3·10⁻⁴ DN) is a thousandth of the quantisation noise (0.29 DN). The outputs
+    are float32 too.
     """
     t, frames, darks = _checked(raw_dn, dark_dn, exposures_s)
     if not sensor.gain_dn_per_e > 0:
@@ -165,12 +180,54 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     out = HdrMerge(rate_dn_s=np.empty((height, width), np.float32), var_rate=np.empty((height, width), np.float32),
                    var_dark=np.empty((height, width), np.float32), n_used=np.empty((height, width), np.uint8),
                    saturated=np.empty((height, width), bool), clipped=np.empty((height, width), bool))
+    if _merge_kernel is not None:
+        _merge_compiled(frames, darks, consts, saturation_threshold_dn(sensor, margin_rel), int(np.argmin(t)),
+                        int(np.argmax(t)), out)
+        return out
     rows = max(1, BLOCK_PX // max(width, 1))
     for y0 in range(0, height, rows):
         block = slice(y0, y0 + rows)
         _merge_block([f[:, block] for f in frames], [d[:, block] for d in darks], thresholds, consts,
                      int(np.argmin(t)), int(np.argmax(t)), out, block)
     return out
+
+
+def _merge_compiled(frames: list[np.ndarray], darks: list[np.ndarray], consts: list[dict[str, float]],
+                    threshold_dn: float, shortest: int, longest: int, out: HdrMerge) -> None:
+    """merge_exposures' pass over the pixels by the compiled kernel (_merge_kernel.c): one band of rows per
+    worker thread for a frame of PARALLEL_MIN_PX pixels or more, else in the caller's thread. The kernel
+    reads uint16, float32 and float64 frames; others are converted to float32 first."""
+    def readable(frame: np.ndarray) -> np.ndarray:
+        return frame if frame.dtype.isnative and frame.dtype in _KERNEL_DTYPES else frame.astype(np.float32)
+    peaks = [readable(f[0] if len(f) == 1 else f.max(axis=0)) for f in frames]
+    def column(key: str) -> list[float]:
+        return [c[key] for c in consts]
+    merge_rows = functools.partial(
+        _merge_kernel.merge_rows, [readable(_mean_dn(f)) for f in frames], peaks,
+        [readable(_mean_dn(d)) for d in darks],
+        [_threshold_for(p.dtype, threshold_dn) for p in peaks], column("inv_t"), column("a"), column("b"), column("c"),
+        shortest, longest, REWEIGHT_PASSES, [out.rate_dn_s, out.var_rate, out.var_dark, out.n_used, out.saturated,
+                                            out.clipped])
+    height = out.rate_dn_s.shape[0]
+    bands = _workers() if out.rate_dn_s.size >= PARALLEL_MIN_PX else 1
+    if bands == 1:
+        merge_rows(0, height)
+        return
+    edges = [height * i // bands for i in range(bands + 1)]
+    for done in [_pool(os.getpid()).submit(merge_rows, y0, y1) for y0, y1 in zip(edges[:-1], edges[1:]) if y1 > y0]:
+        done.result()
+
+
+def _workers() -> int:
+    """CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@functools.cache
+def _pool(pid: int) -> ThreadPoolExecutor:
+    """The compiled merge's worker threads, one per CPU; one pool per process (`pid`), so that a forked
+    child makes its own instead of waiting on its parent's threads."""
+    return ThreadPoolExecutor(_workers(), thread_name_prefix=f"hdr-merge-{pid}")
 
 
 def _threshold_for(dtype: np.dtype, threshold_dn: float) -> float:

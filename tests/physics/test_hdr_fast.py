@@ -12,10 +12,21 @@ import numpy as np
 import pytest
 
 from rig.core.values import SensorInfo
+from rig.physics import hdr
 from rig.physics.hdr import merge_exposures, merge_exposures_reference, saturation_threshold_dn
 
 SENSOR = SensorInfo(width_px=300, height_px=200, bit_depth=12, gain_dn_per_e=0.25, read_noise_e=8.0,
                     black_level_dn=64.0, calibration_cd_m2_per_dn_s=1.0)
+
+
+@pytest.fixture(autouse=True, params=["compiled", "numpy"])
+def implementation(request, monkeypatch):
+    """Every test runs on the compiled kernel and on the numpy fallback of an install without a C compiler."""
+    if request.param == "numpy":
+        monkeypatch.setattr(hdr, "_merge_kernel", None)
+    elif hdr._merge_kernel is None:
+        pytest.skip("rig.physics._merge_kernel was not built (see tests/physics/test_hdr.py)")
+    return request.param
 
 
 def raw_stack(rng, rate_e_s, exposure_s, n_frames, shape):
@@ -127,3 +138,20 @@ def test_a_sensor_without_gain_is_refused():
                          black_level_dn=64.0, calibration_cd_m2_per_dn_s=1.0)
     with pytest.raises(ValueError, match="gain"):
         merge_exposures([frame], [frame], [0.1], no_gain)
+
+
+def test_frames_of_other_types_and_byte_orders_merge_like_the_reference():
+    """int32 and big-endian uint16 frames: the compiled kernel reads them as float32 copies."""
+    rng = np.random.default_rng(17)
+    times = [0.004, 0.032]
+    raw, darks = scene(rng, (30, 40), times)
+    assert_same_merge([r.astype(np.int32) for r in raw], [d.astype(">u2") for d in darks], times)
+
+
+def test_a_full_frame_merges_in_bands_like_the_reference():
+    """More rows than workers, an odd count, and above PARALLEL_MIN_PX: the bands cover every row once."""
+    rng = np.random.default_rng(18)
+    times = [0.001, 0.008]
+    shape = (hdr.PARALLEL_MIN_PX // 200 + 7, 201)
+    raw, darks = scene(rng, shape, times)
+    assert_same_merge(raw, darks, times)
