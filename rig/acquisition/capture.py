@@ -30,12 +30,13 @@ merged (the merge excludes saturated samples), `frames_per_exposure` frames each
 Exposure times lie on a 1/6-stop ladder so that dark frames are reused from
 point to point. Only the ROI is merged unless `full_frame` (images are saved);
 the camera reads only a window around the ROI, or, if it cannot, the frame it
-returns is cropped.
+returns is cropped. With `full_frame` the metering probes still read only that
+window; the exposures kept are read whole.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -272,8 +273,12 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
     region = window if settings.full_frame else roi
     in_window, in_region = ((slice(None), *window.inner(w)) for w in (roi, region))   # in a frame stack
     shots = _Shots(camera, window)
+    # Images saved: the metering probes read only the window around the ROI, since nothing outside the ROI
+    # decides the exposure; the exposures kept are read whole (a probe kept is read again).
+    meter = _Shots(camera, point_windows(camera, replace(settings, full_frame=False))[1]) \
+        if settings.full_frame else shots
 
-    metered_s = _metered_exposure(shots, in_window, darks, sensor, settings)
+    metered_s = _metered_exposure(meter, (slice(None), *meter.window.inner(roi)), darks, sensor, settings)
     if settings.mode == "fixed_bracket":
         exposures = fixed_bracket(metered_s, settings, darks, sensor)
     else:
@@ -300,9 +305,10 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
         frames=tuple(shots.take(e, n) for e in exposures),
         darks=tuple(darks.get(camera, e, window, n, settings.dark_max_age_s) for e in exposures),
         exposures_s=tuple(shots.realised_s(e) for e in exposures), roi_merge=merged,
-        n_frames=shots.n_taken, n_darks=darks.n_taken - darks_before,
+        n_frames=shots.n_taken + (meter.n_taken if meter is not shots else 0), n_darks=darks.n_taken - darks_before,
         capture_time_s=(darks.clock.now() - start_s if darks.clock
-                        else shots.exposed_s + darks.exposed_s - dark_exposed_before))
+                        else shots.exposed_s + (meter.exposed_s if meter is not shots else 0.0)
+                        + darks.exposed_s - dark_exposed_before))
 
 
 def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:

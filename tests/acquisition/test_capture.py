@@ -184,9 +184,12 @@ def test_frame_averaging_and_full_frame():
     settings = dataclasses.replace(SETTINGS, frames_per_exposure=3, full_frame=True)
     capture = capture_point(camera, settings, DarkFrameCache())
     merged_s = capture.exposures_s[0]
-    assert exposures_of(camera, merged_s) == 3
     assert capture.image_cd_m2.shape == (100, 120)
-    assert all(window == camera.full_window() for _, window in camera.light_calls)
+    # the probes metered the ROI's window (margin 0 px) only; the exposure they chose was read whole, 3 times
+    probes = [call for call in camera.light_calls if call[1] != camera.full_window()]
+    assert probes and {window for _, window in probes} == {Window(40, 30, 40, 40)}
+    assert camera.light_calls[len(probes):] == [(merged_s, camera.full_window())] * 3
+    assert capture.n_frames == len(camera.light_calls)
     rows, cols = camera.full_window().inner(capture.roi_window)
     assert capture.luminance_cd_m2 == pytest.approx(capture.image_cd_m2[rows, cols].mean())
 
