@@ -83,6 +83,13 @@ def mean_direction_deg(theta_deg: ArrayLike, phi_deg: ArrayLike) -> tuple[float,
     return float(np.degrees(theta)), float(wrap_360(np.degrees(phi)))
 
 
+_EYE3 = np.eye(3)
+#: Row k: the cross-product matrix [eₖ]× of the k-th unit vector, flattened, so that k @ this is [k]×.
+_CROSS_BY_AXIS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0],
+                           [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0],
+                           [0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]])
+
+
 def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Dot products along the last axis, broadcasting the others (einsum: no big temporaries)."""
     return np.einsum("...i,...i->...", u, v)
@@ -95,18 +102,14 @@ def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def rotation_matrix(axis: ArrayLike, angle: ArrayLike) -> np.ndarray:
-    """Right-handed rotation(s) about unit `axis` (..., 3) by `angle` (...), Rodrigues."""
-    turn = np.asarray(angle, float)
-    unit, _ = np.broadcast_arrays(np.asarray(axis, float), turn[..., None])
-    turn = np.broadcast_to(turn, unit.shape[:-1])
-    x, y, z = unit[..., 0], unit[..., 1], unit[..., 2]
+    """Right-handed rotation(s) about unit `axis` (..., 3) by `angle` (...), Rodrigues:
+    R = cos θ·I + sin θ·[k]× + (1 − cos θ)·k kᵀ, in a few whole-array operations (the rig builds
+    single matrices thousands of times a run, so per-call overhead counts as much as the arithmetic)."""
+    unit = np.asarray(axis, float)
+    turn = np.asarray(angle, float)[..., None, None]
     c, s = np.cos(turn), np.sin(turn)
-    t = 1.0 - c
-    return np.stack([
-        np.stack([c + x * x * t, x * y * t - z * s, x * z * t + y * s], axis=-1),
-        np.stack([y * x * t + z * s, c + y * y * t, y * z * t - x * s], axis=-1),
-        np.stack([z * x * t - y * s, z * y * t + x * s, c + z * z * t], axis=-1),
-    ], axis=-2)
+    cross = (unit @ _CROSS_BY_AXIS).reshape(unit.shape[:-1] + (3, 3))            # [k]×
+    return c * _EYE3 + s * cross + (1.0 - c) * (unit[..., :, None] * unit[..., None, :])
 
 
 def rot_z(angle: ArrayLike) -> np.ndarray:
