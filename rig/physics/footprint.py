@@ -29,6 +29,7 @@ component is 0, which leaves diffuse and retroreflective samples exactly as befo
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -89,6 +90,33 @@ def _design(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
 
 
+@dataclass(frozen=True)
+class _Lattice:
+    """What fit_lobe needs of an ROI's block and pixel positions; the same for every point of a run."""
+
+    scale: float                # ROI half-diagonal, px: keeps the design well scaled
+    design: np.ndarray          # quadratic basis at the block centres (rows, cols, 6)
+    solve: np.ndarray           # least-squares solution operator (XᵀX)⁻¹Xᵀ (6, rows·cols)
+    inv_normal: np.ndarray      # (XᵀX)⁻¹ (6, 6)
+    pixel_basis: np.ndarray     # q − q(centre) basis at the pixel centres, no constant (height·width, 5)
+
+
+@functools.lru_cache(maxsize=16)
+def _lattice(rows: int, cols: int, block_px: int, height: int, width: int) -> _Lattice:
+    scale = math.hypot(height, width) / 2
+    yb = ((np.arange(rows) + 0.5) * block_px - height / 2) / scale
+    xb = ((np.arange(cols) + 0.5) * block_px - width / 2) / scale
+    design = _design(*np.meshgrid(xb, yb))
+    flat = design.reshape(-1, 6)
+    inv_normal = np.linalg.inv(flat.T @ flat)
+    yp = (np.arange(height) + 0.5 - height / 2) / scale
+    xp = (np.arange(width) + 0.5 - width / 2) / scale
+    arrays = (design, inv_normal @ flat.T, inv_normal, _design(*np.meshgrid(xp, yp)).reshape(-1, 6)[:, 1:])
+    for a in arrays:
+        a.flags.writeable = False           # shared by every call
+    return _Lattice(scale, *arrays)
+
+
 def _neighbour_correlation(res: np.ndarray) -> float:
     """Mean correlation of edge-sharing residuals (clipped at 0): blocks only a few grains wide share texture."""
     products = np.concatenate([(res[:, :-1] * res[:, 1:]).ravel(), (res[:-1, :] * res[1:, :]).ravel()])
@@ -108,28 +136,22 @@ def fit_lobe(means: np.ndarray, block_px: int, roi_shape: tuple[int, int]) -> Lo
     if rows * cols < 12 or rows < 3 or cols < 3 or not np.all(means > 0):
         return NO_LOBE
     height, width = roi_shape
-    scale = math.hypot(height, width) / 2                       # ROI half-diagonal, px: keeps X well scaled
-    yb = ((np.arange(rows) + 0.5) * block_px - height / 2) / scale
-    xb = ((np.arange(cols) + 0.5) * block_px - width / 2) / scale
-    design = _design(*np.meshgrid(xb, yb))                       # (rows, cols, 6)
-    design_flat = design.reshape(-1, 6)
+    lattice = _lattice(rows, cols, block_px, height, width)
+    design_flat, scale = lattice.design.reshape(-1, 6), lattice.scale
     log_means = np.log(means).ravel()
-    coef, *_ = np.linalg.lstsq(design_flat, log_means, rcond=None)
+    coef = lattice.solve @ log_means
     # A block's mean exceeds the lobe at its centre by ≈ side²/24 · (|∇q|² + ∇²q) (the mean of an
     # exponential over the block): refit once without it, or a steep lobe's curvature comes out too flat.
     side2 = (block_px / scale) ** 2
     grad_x = coef[1] + 2 * coef[3] * design_flat[:, 1] + coef[4] * design_flat[:, 2]
     grad_y = coef[2] + coef[4] * design_flat[:, 1] + 2 * coef[5] * design_flat[:, 2]
     within = side2 / 24 * (grad_x ** 2 + grad_y ** 2 + 2 * (coef[3] + coef[5]))
-    coef, *_ = np.linalg.lstsq(design_flat, log_means - within, rcond=None)
+    coef = lattice.solve @ (log_means - within)
     res = log_means - within - design_flat @ coef
     dof = res.size - 6
     s2 = float(res @ res) / dof * (1.0 + 4.0 * _neighbour_correlation(res.reshape(rows, cols)))
-    cov = s2 * np.linalg.inv(design_flat.T @ design_flat)
-
-    yp = (np.arange(height) + 0.5 - height / 2) / scale
-    xp = (np.arange(width) + 0.5 - width / 2) / scale
-    basis = _design(*np.meshgrid(xp, yp)).reshape(-1, 6)[:, 1:]  # q − q(centre): no constant
+    cov = s2 * lattice.inv_normal
+    basis = lattice.pixel_basis
     ratio = np.exp(basis @ coef[1:])
     bias = float(ratio.mean() - 1.0)
     grad = np.concatenate([[0.0], (ratio[:, None] * basis).mean(axis=0)])
@@ -138,7 +160,7 @@ def fit_lobe(means: np.ndarray, block_px: int, roi_shape: tuple[int, int]) -> Lo
     hessian = np.array([[2 * coef[3], coef[4]], [coef[4], 2 * coef[5]]])
     steepest = -float(np.linalg.eigvalsh(hessian)[0])            # most negative curvature of log f
     width_rel = 1.0 / math.sqrt(steepest) if steepest > 0 else math.inf
-    trend = np.exp(design[..., 1:] @ coef[1:]) / (1.0 + bias)
+    trend = np.exp(lattice.design[..., 1:] @ coef[1:]) / (1.0 + bias)
     return LobeFit(bias_rel=bias, u_bias_rel=u_bias, resolved=abs(bias) >= RESOLVED_Z * u_bias,
                    width_rel=width_rel, residual_rel=float(np.sqrt(float(res @ res) / dof)),
                    slope_rel=float(math.hypot(coef[1], coef[2])), trend=trend)
