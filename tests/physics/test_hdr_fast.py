@@ -155,3 +155,12 @@ def test_a_full_frame_merges_in_bands_like_the_reference():
     shape = (hdr.PARALLEL_MIN_PX // 200 + 7, 201)
     raw, darks = scene(rng, shape, times)
     assert_same_merge(raw, darks, times)
+
+
+def test_more_exposures_than_the_kernel_specialises_for_merge_like_the_reference():
+    """Five exposures: the compiled kernel's general loop (it unrolls only up to four)."""
+    rng = np.random.default_rng(19)
+    times = [0.0005, 0.001, 0.004, 0.016, 0.064]
+    raw, darks = scene(rng, (40, 50), times)
+    ref = assert_same_merge(raw, darks, times)
+    assert ref.saturated.any() and (ref.n_used == len(times)).any()
