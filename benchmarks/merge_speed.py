@@ -40,6 +40,7 @@ sys.path.insert(0, str(ROOT))
 
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
+from rig.core.bands import workers  # noqa: E402
 from rig.physics import hdr  # noqa: E402
 from rig.physics.hdr import merge_exposures, merge_exposures_reference  # noqa: E402
 from rig.session.bench import best_of, machine  # noqa: E402
@@ -114,7 +115,7 @@ def merge_figures(repeat: int) -> None:
     print(f"  reference merge          {reference * 1e3:8.2f} ms   {reference / fast:6.1f}× the fast merge")
     print(f"  numpy merge (no C build) {fallback * 1e3:8.2f} ms   {fallback / fast:6.1f}× the fast merge")
     label = f"fast merge, {'compiled' if kernel else 'numpy'}"
-    print(f"  {label:<24s} {fast * 1e3:8.2f} ms   {fast / copy:6.1f}× the copy on {hdr._workers()} CPUs   "
+    print(f"  {label:<24s} {fast * 1e3:8.2f} ms   {fast / copy:6.1f}× the copy on {workers()} CPUs   "
           f"targets ≤ {MERGE_TARGET_S * 1e3:.0f} ms, ≤ {MERGE_TARGET_COPIES:.0f}× the copy"
           f"{'' if fast <= MERGE_TARGET_S and fast / copy <= MERGE_TARGET_COPIES else '  (missed)'}")
     print(f"  fresh process: import    {first['import_s'] * 1e3:8.2f} ms   then first merge "

@@ -40,7 +40,8 @@ def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, fram
     The geometry of rig.physics.optics (pixel_rays, intersect_sample_plane, in_beam), computed so that
     only the lit pixels get (N, 3) arrays: the unnormalised ray d = sx·X − sy·Y − f·B of the pixel at
     sensor coordinates (sx, sy) (camera frame [X | Y | B]) projects on any vector q as sx·(X·q) plus a
-    term of sy alone, so the box needs only sums of a column and a row term; and the hit o + t·d,
+    term of sy alone, so over the box it is an outer sum of a row and a column term, of which the lit
+    pixels are picked; and the hit o + t·d,
     t = −(o·n)/(d·n), needs no normalised d. A ray hits the front when the camera is on the normal's
     side (o·n > 0) and d·n < 0; it is lit when the hit's GCS x² + z² ≤ r² (a negative r lights nothing).
     """
@@ -50,12 +51,10 @@ def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, fram
     sy = (box.y0 + 0.5 - optics.height_px / 2 + np.arange(box.height)) * optics.pixel_pitch_m
     f = optics.focal_length_m
 
-    def along(q: np.ndarray, rows: np.ndarray | slice = slice(None), cols: np.ndarray | slice = slice(None),
-              ) -> np.ndarray:
-        """d·q for the pixels at (rows, cols) of the box: all of it (h, w) by default."""
+    def along(q: np.ndarray) -> np.ndarray:
+        """d·q for every pixel of the box (height, width)."""
         x, y, back = q @ cam
-        col, row = sx[cols] * x, -sy[rows] * y - f * back
-        return np.add.outer(row, col) if isinstance(rows, slice) else row + col
+        return np.add.outer(-sy * y - f * back, sx * x)
 
     normal = frame[:, 2]
     height = float(origin @ normal)
@@ -74,11 +73,15 @@ def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, fram
     x += np.square(z, out=z)
     with np.errstate(invalid="ignore"):
         lit = x <= radius_m ** 2                                       # NaN (no hit) is False
-    rows, cols = np.nonzero(lit)
-    t_lit = t[rows, cols]
-    d_scs = np.stack([along(frame[:, k], rows, cols) for k in range(3)], axis=1)    # d in the SCS, (N, 3)
-    xy = origin @ frame[:, :2] + t_lit[:, None] * d_scs[:, :2]
-    wo = d_scs / -np.sqrt(np.square(sx[cols]) + np.square(sy[rows]) + f * f)[:, None]   # |d|: cam orthonormal
+    t_lit = t[lit]
+    wo = np.empty((t_lit.size, 3))                                     # d in the SCS, then normalised
+    for k in range(3):
+        wo[:, k] = along(frame[:, k])[lit]
+    xy = np.empty((t_lit.size, 2))
+    for k, start in enumerate(origin @ frame[:, :2]):
+        np.multiply(wo[:, k], t_lit, out=xy[:, k])
+        xy[:, k] += start
+    wo /= -np.sqrt(np.add.outer(np.square(sy), np.square(sx) + f * f))[lit][:, None]    # |d|: cam orthonormal
     return lit, xy, wo
 
 

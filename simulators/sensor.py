@@ -10,23 +10,38 @@ Two truths for `rig calibrate camera` to recover: the lens's natural vignetting
 (cos⁴ of each pixel's field angle in the pinhole model; the central ROI of a long
 lens loses under 1e-4) scales the photo-electrons, and an optional nonlinearity of
 the charge conversion (`simulation.nonlinearity_rel`, 0 by default) bends the response.
+
+SensorModel.read runs the whole chain (mean image, electrons' hybrid rule, nonlinearity,
+digitise; float32 as here) in the compiled kernel `_sensor_kernel.c`: its own ziggurat
+normals and exact Poisson sampler, one band of rows per CPU, every row's random numbers
+seeded from (one 64-bit draw of the caller's Generator per frame, the row), so a frame does
+not depend on the number of CPUs. Installed without a C compiler, the numpy functions below
+do it: the same statistics, another random stream.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
 from rig.config.rigfile import CameraConfig, SimulationConfig
+from rig.core.bands import run_in_bands
 from rig.core.values import Window
+
+try:
+    from rig.simulators import _sensor_kernel
+except ImportError:            # installed without a C compiler: the numpy functions below do it all
+    _sensor_kernel = None  # type: ignore[assignment]
 
 #: Poisson means are capped at this multiple of the full well: the pixel saturates
 #: anyway, and numpy's Poisson sampler refuses astronomically large means.
 SATURATION_GUARD = 2.0
 #: Largest skewness of Poisson(λ) + N(0, σd²) at which the charge is drawn as a normal (see electrons).
 NORMAL_MAX_SKEWNESS = 0.02
+#: Luminance arrays the compiled kernel reads as they are; others are converted to float64 first.
+_KERNEL_LUMINANCE = (np.dtype(np.float64), np.dtype(np.float32))
 
 
 def electrons(rng: np.random.Generator, mean_e: np.ndarray, read_noise_e: float,
@@ -130,9 +145,38 @@ class SensorModel:
     def read(self, rng: np.random.Generator, luminance_cd_m2: np.ndarray | float,
              exposure_s: float, window: Window) -> np.ndarray:
         """One noisy raw frame (uint16, (height, width)); luminance 0 gives a dark frame."""
+        if _sensor_kernel is not None:
+            return self._read_compiled(rng, luminance_cd_m2, exposure_s, window)
         cam = self.camera
         charge = electrons(rng, self.mean_electrons(luminance_cd_m2, exposure_s, window),
                            cam.read_noise_e, cam.full_well_e)
         if self.nonlinearity_rel:
             charge = convert_nonlinear(charge, self.nonlinearity_rel, cam.full_well_e)
         return digitise(charge, cam.gain_dn_per_e, cam.black_level_dn, cam.bit_depth)
+
+    def _read_compiled(self, rng: np.random.Generator, luminance_cd_m2: np.ndarray | float,
+                       exposure_s: float, window: Window) -> np.ndarray:
+        """read by the compiled kernel (_sensor_kernel.c), one band of rows per CPU (rig.core.bands): the
+        frame's seed is one 64-bit draw from rng, each row's stream is derived from it and the row."""
+        cam = self.camera
+        shape = (window.height, window.width)
+        rows = slice(window.y0, window.y0 + window.height)
+        cols = slice(window.x0, window.x0 + window.width)
+        response, dark_e_s = (a[rows, cols] for a in self._response)
+        luminance: np.ndarray | float
+        if np.ndim(luminance_cd_m2) == 0:
+            luminance = float(luminance_cd_m2)
+        else:
+            luminance = np.asarray(luminance_cd_m2)
+            if luminance.dtype not in _KERNEL_LUMINANCE or not luminance.dtype.isnative:
+                luminance = luminance.astype(np.float64)
+            luminance = np.broadcast_to(luminance, shape)
+        out = np.empty(shape, np.uint16)
+        seed = int(rng.integers(0, 2 ** 64, dtype=np.uint64))
+        run_in_bands(partial(
+            _sensor_kernel.read_rows, out, response, dark_e_s, luminance, exposure_s,
+            cam.responsivity_e_per_cd_m2_s * exposure_s, cam.read_noise_e, cam.full_well_e, SATURATION_GUARD,
+            NORMAL_MAX_SKEWNESS, self.nonlinearity_rel, cam.gain_dn_per_e, cam.black_level_dn, cam.bit_depth,
+            seed), *shape)
+        return out
+

@@ -26,6 +26,7 @@ lattice values: per lattice dimension the standard deviation shrinks by
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -34,9 +35,17 @@ import numpy as np
 from scipy.special import ndtri
 
 from rig.config.rigfile import SimulationConfig
+from rig.core.bands import run_in_bands
 from rig.physics.geometry import dot
 
+try:
+    from rig.simulators import _noise_kernel
+except ImportError:            # installed without a C compiler: value_noise runs in numpy
+    _noise_kernel = None  # type: ignore[assignment]
+
 _MASK64 = (1 << 64) - 1
+#: Axes the compiled value noise takes (the glint's four at most).
+_KERNEL_MAX_AXES = 4
 
 
 def mix64(z: np.ndarray) -> np.ndarray:
@@ -106,8 +115,17 @@ def noise_lattice(nodes: Sequence[np.ndarray], contrast: float, seed: int) -> np
 
 
 def value_noise(coords: Sequence[np.ndarray], contrast: float, seed: int) -> np.ndarray:
-    """Value noise with mean 1 at finite lattice coordinates (any number of axes, broadcast together)."""
+    """Value noise with mean 1 at finite lattice coordinates (any number of axes, broadcast together).
+
+    With the compiled kernel (_noise_kernel.c, 1 to 4 axes) the points are split into one run per CPU
+    (rig.core.bands); its values are those of the numpy code below, which runs where it was not built.
+    """
     coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
+    if _noise_kernel is not None and 1 <= len(coords) <= _KERNEL_MAX_AXES:
+        flat = [c.reshape(-1) for c in coords]
+        out = np.empty(flat[0].size)
+        run_in_bands(functools.partial(_noise_kernel.value_noise, flat, contrast, seed & _MASK64, out), out.size, 1)
+        return out.reshape(coords[0].shape)
     cells = [np.floor(c) for c in coords]
     weights = [smoothstep(c - f) for c, f in zip(coords, cells)]
     corners = corner_values(lambda *nodes: noise_lattice(nodes, contrast, seed),

@@ -328,11 +328,8 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     else:
         merged, in_merged = acq.roi_merge, (slice(None), slice(None))
     var_dark = mean_noise(merged.var_dark[in_merged]) ** 2
-    cal = np.full(merged.rate_dn_s.shape, sensor.calibration_cd_m2_per_dn_s)      # cd/m² per DN/s, per pixel
-    if isinstance(sensor, CalibratedSensorInfo):
-        cal /= sensor.flat_of(acq.window if settings.full_frame else acq.roi)
-    luminance = merged.rate_dn_s * cal
-    stats = roi_statistics(luminance[in_merged], merged.var_rate[in_merged] * cal[in_merged] ** 2)
+    cal = calibration_of(sensor, acq.roi)                            # cd/m² per DN/s, per pixel of the ROI
+    stats = roi_statistics(merged.rate_dn_s[in_merged] * cal, merged.var_rate[in_merged] * cal ** 2)
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=stats.u_luminance(sensor.calibration_u_rel),
@@ -340,11 +337,12 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
         exposures_s=acq.exposures_s,
         saturated_fraction=float(np.mean(merged.saturated[in_merged])),
         flags=point_flags(stats, settings.min_snr, bool(np.any(merged.clipped[in_merged]))),
-        image_cd_m2=luminance if settings.full_frame else None,
+        image_cd_m2=(np.multiply(merged.rate_dn_s, calibration_of(sensor, acq.window), dtype=np.float32)
+                     if settings.full_frame else None),
         roi_window=acq.roi,
         n_frames=acq.n_frames,
         u_noise_cd_m2=stats.u_mean_noise,
-        u_dark_cd_m2=float(np.sqrt(var_dark) * cal[in_merged].mean()),
+        u_dark_cd_m2=float(np.sqrt(var_dark) * cal.mean()),
         u_texture_cd_m2=stats.u_texture,
         u_lobe_cd_m2=stats.u_lobe,
         lobe_bias_rel=stats.lobe_bias_rel,
@@ -353,6 +351,15 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
         capture_time_s=acq.capture_time_s,
         n_darks=acq.n_darks,
     )
+
+
+def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:
+    """cd/m² per DN/s of the pixels of `window` (float64): the camera's coefficient over its flat field (lens
+    fall-off and PRNU), (height, width), where `rig calibrate camera` measured one; else the coefficient
+    alone, as a 0-d array (it broadcasts)."""
+    if isinstance(sensor, CalibratedSensorInfo) and sensor.flat_field is not None:
+        return sensor.calibration_cd_m2_per_dn_s / sensor.flat_of(window)
+    return np.asarray(sensor.calibration_cd_m2_per_dn_s, dtype=float)
 
 
 def capture_point(camera: LuminanceCamera, settings: CaptureSettings, darks: DarkFrameCache) -> PointCapture:

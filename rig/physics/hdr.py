@@ -18,13 +18,12 @@ both fast ones to it.
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from rig.core.bands import run_in_bands
 from rig.core.values import SensorInfo
 
 try:
@@ -43,8 +42,6 @@ REWEIGHT_PASSES = 2
 #: Pixels merged at a time: a block's dozen float32 working arrays (~3 MB) stay in
 #: the CPU's cache, so the frames are read from memory once, whatever the passes.
 BLOCK_PX = 1 << 16
-#: Frames of at least this many pixels are merged by the compiled kernel in one band of rows per CPU.
-PARALLEL_MIN_PX = 1 << 16
 #: What the compiled kernel reads (the buffer formats 'H', 'f', 'd').
 _KERNEL_DTYPES = (np.dtype(np.uint16), np.dtype(np.float32), np.dtype(np.float64))
 #: Dark frames of at least this many pixels get their median from a histogram (OpenCV),
@@ -195,7 +192,7 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
 def _merge_compiled(frames: list[np.ndarray], darks: list[np.ndarray], consts: list[dict[str, float]],
                     threshold_dn: float, shortest: int, longest: int, out: HdrMerge) -> None:
     """merge_exposures' pass over the pixels by the compiled kernel (_merge_kernel.c): one band of rows per
-    worker thread for a frame of PARALLEL_MIN_PX pixels or more, else in the caller's thread. The kernel
+    CPU for a full frame (rig.core.bands). The kernel
     reads uint16, float32 and float64 frames; others are converted to float32 first."""
     def readable(frame: np.ndarray) -> np.ndarray:
         return frame if frame.dtype.isnative and frame.dtype in _KERNEL_DTYPES else frame.astype(np.float32)
@@ -208,26 +205,7 @@ def _merge_compiled(frames: list[np.ndarray], darks: list[np.ndarray], consts: l
         [_threshold_for(p.dtype, threshold_dn) for p in peaks], column("inv_t"), column("a"), column("b"), column("c"),
         shortest, longest, REWEIGHT_PASSES, [out.rate_dn_s, out.var_rate, out.var_dark, out.n_used, out.saturated,
                                             out.clipped])
-    height = out.rate_dn_s.shape[0]
-    bands = _workers() if out.rate_dn_s.size >= PARALLEL_MIN_PX else 1
-    if bands == 1:
-        merge_rows(0, height)
-        return
-    edges = [height * i // bands for i in range(bands + 1)]
-    for done in [_pool(os.getpid()).submit(merge_rows, y0, y1) for y0, y1 in zip(edges[:-1], edges[1:]) if y1 > y0]:
-        done.result()
-
-
-def _workers() -> int:
-    """CPUs this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-@functools.cache
-def _pool(pid: int) -> ThreadPoolExecutor:
-    """The compiled merge's worker threads, one per CPU; one pool per process (`pid`), so that a forked
-    child makes its own instead of waiting on its parent's threads."""
-    return ThreadPoolExecutor(_workers(), thread_name_prefix=f"hdr-merge-{pid}")
+    run_in_bands(merge_rows, *out.rate_dn_s.shape)
 
 
 def _threshold_for(dtype: np.dtype, threshold_dn: float) -> float:

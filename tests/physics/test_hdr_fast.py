@@ -11,6 +11,7 @@ Masks and counts are integers: identical.
 import numpy as np
 import pytest
 
+from rig.core.bands import PARALLEL_MIN_PX
 from rig.core.values import SensorInfo
 from rig.physics import hdr
 from rig.physics.hdr import merge_exposures, merge_exposures_reference, saturation_threshold_dn
@@ -152,7 +153,7 @@ def test_a_full_frame_merges_in_bands_like_the_reference():
     """More rows than workers, an odd count, and above PARALLEL_MIN_PX: the bands cover every row once."""
     rng = np.random.default_rng(18)
     times = [0.001, 0.008]
-    shape = (hdr.PARALLEL_MIN_PX // 200 + 7, 201)
+    shape = (PARALLEL_MIN_PX // 200 + 7, 201)
     raw, darks = scene(rng, shape, times)
     assert_same_merge(raw, darks, times)
 
