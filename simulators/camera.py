@@ -24,6 +24,11 @@ from rig.simulators.sensor import SensorModel
 from rig.simulators.texture import GlintTexture, ValueNoiseTexture
 from rig.simulators.world import SimWorld
 
+try:
+    from rig.simulators import _view_kernel
+except ImportError:            # installed without a C compiler: lit_view runs in numpy
+    _view_kernel = None  # type: ignore[assignment]
+
 #: Points of the spot's outline projected to bound the rays traced: their polygon falls short of
 #: the outline's image by its sagitta, under 0.3 px for a spot image 4000 px across.
 SPOT_OUTLINE_POINTS = 256
@@ -47,42 +52,33 @@ def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, fram
     """
     cam = camera_frame(a_rad, b_rad)
     origin = optics.distance_m * camera_unit(a_rad, b_rad)
-    sx = (box.x0 + 0.5 - optics.width_px / 2 + np.arange(box.width)) * optics.pixel_pitch_m
-    sy = (box.y0 + 0.5 - optics.height_px / 2 + np.arange(box.height)) * optics.pixel_pitch_m
-    f = optics.focal_length_m
-
-    def along(q: np.ndarray) -> np.ndarray:
-        """d·q for every pixel of the box (height, width)."""
-        x, y, back = q @ cam
-        return np.add.outer(-sy * y - f * back, sx * x)
-
     normal = frame[:, 2]
     height = float(origin @ normal)
     if height <= 0 or radius_m < 0:
         return np.zeros((box.height, box.width), bool), np.empty((0, 2)), np.empty((0, 3))
-    approach = along(normal)
+    sx = (box.x0 + 0.5 - optics.width_px / 2 + np.arange(box.width)) * optics.pixel_pitch_m
+    sy = (box.y0 + 0.5 - optics.height_px / 2 + np.arange(box.height)) * optics.pixel_pitch_m
+    f = optics.focal_length_m
+    # d·q = row term + column term, for q = n, GCS X and Z, the SCS axes; then |d|² = sy² + (sx² + f²)
+    x, y, back = (np.stack([normal, [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], *frame.T]) @ cam).T
+    rows = np.vstack([np.outer(y, -sy) - (f * back)[:, None], np.square(sy)])
+    cols = np.vstack([np.outer(x, sx), np.square(sx) + f * f])
+    start = origin @ frame[:, :2]
+    if _view_kernel is not None:
+        lit = np.empty((box.height, box.width), bool)
+        xy, wo = np.empty((lit.size, 2)), np.empty((lit.size, 3))
+        n = _view_kernel.lit_rays(rows, cols, height, origin[0], origin[2], radius_m ** 2, *start, lit, xy, wo)
+        return lit, xy[:n], wo[:n]
+    along = [np.add.outer(r, c) for r, c in zip(rows, cols)]            # (height, width) each
     with np.errstate(divide="ignore"):
-        t = np.divide(-height, approach, out=np.full_like(approach, np.nan), where=approach < 0)
-    x = along(np.array([1.0, 0.0, 0.0]))
-    x *= t
-    x += origin[0]
-    z = along(np.array([0.0, 0.0, 1.0]))
-    z *= t
-    z += origin[2]
-    np.square(x, out=x)
-    x += np.square(z, out=z)
+        t = np.divide(-height, along[0], out=np.full_like(along[0], np.nan), where=along[0] < 0)
+    hit_x, hit_z = along[1] * t + origin[0], along[2] * t + origin[2]
     with np.errstate(invalid="ignore"):
-        lit = x <= radius_m ** 2                                       # NaN (no hit) is False
+        lit = np.square(hit_x) + np.square(hit_z) <= radius_m ** 2     # NaN (no hit) is False
     t_lit = t[lit]
-    wo = np.empty((t_lit.size, 3))                                     # d in the SCS, then normalised
-    for k in range(3):
-        wo[:, k] = along(frame[:, k])[lit]
-    xy = np.empty((t_lit.size, 2))
-    for k, start in enumerate(origin @ frame[:, :2]):
-        np.multiply(wo[:, k], t_lit, out=xy[:, k])
-        xy[:, k] += start
-    wo /= -np.sqrt(np.add.outer(np.square(sy), np.square(sx) + f * f))[lit][:, None]    # |d|: cam orthonormal
-    return lit, xy, wo
+    d_scs = np.stack([a[lit] for a in along[3:6]], axis=1)
+    xy = d_scs[:, :2] * t_lit[:, None] + start
+    return lit, xy, d_scs / -np.sqrt(along[6][lit])[:, None]
 
 
 class SimCamera(LuminanceCamera):

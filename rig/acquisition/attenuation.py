@@ -65,8 +65,9 @@ def attenuated(capture: PointCapture, used: Filter) -> PointCapture:
     """The capture as if no filter were in the beam: every luminance (each `…_cd_m2` field, the image too)
     divided by the transmission, whose relative uncertainty joins u_luminance (and is recorded apart)."""
     t = used.transmission
-    scaled = {f.name: getattr(capture, f.name) / t for f in fields(capture)
-              if f.name.endswith("_cd_m2") and getattr(capture, f.name) is not None}
+    luminances = {f.name: getattr(capture, f.name) for f in fields(capture)
+                  if f.name.endswith("_cd_m2") and getattr(capture, f.name) is not None}
+    scaled = luminances if t == 1.0 else {name: value / t for name, value in luminances.items()}  # 1: open
     lum = scaled["luminance_cd_m2"]
     scaled["u_luminance_cd_m2"] = math.hypot(scaled["u_luminance_cd_m2"], used.u_rel * lum)
     return replace(capture, **scaled, filter_position=used.position, transmission=t, u_rel_attenuation=used.u_rel)

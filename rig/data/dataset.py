@@ -337,21 +337,16 @@ class DatasetWriter:
         return folder / f"{point_id}.exr"
 
     def write_image(self, point_id: str, luminance_cd_m2: np.ndarray, metadata: Mapping[str, Any]) -> None:
-        """`images/<point_id>.exr`; a full disk is a DiskFullError like any other write.
-
-        OpenEXR reports a failed write as RuntimeError with the C library's text, not as OSError.
-        """
+        """`images/<point_id>.exr`; a full disk is a DiskFullError like any other write, and leaves no part of
+        the image behind."""
         path = self.image_path(point_id)
 
         def write() -> None:
             try:
                 write_luminance_exr(path, luminance_cd_m2, metadata)
-            except RuntimeError as exc:
+            except OSError:
                 path.unlink(missing_ok=True)
-                full = next((e for e in DISK_FULL_ERRNOS if os.strerror(e) in str(exc)), None)
-                if full is None:
-                    raise
-                raise OSError(full, os.strerror(full), str(path)) from None
+                raise
         self._guarded(f"images/{point_id}.exr", write)
 
     def _close_logs(self) -> None:

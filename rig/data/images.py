@@ -12,6 +12,7 @@ every mantissa, does not compress. rig.acquisition.diskspace bounds the file's s
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,17 @@ import OpenEXR
 
 from rig.core.values import Window
 from rig.physics.geometry import BrdfAngles
+
+#: OpenEXR's magic number, and the version field of a single-part scanline file (2), with the flag for
+#: attribute names longer than EXR_SHORT_NAME_BYTES.
+EXR_MAGIC = bytes([0x76, 0x2F, 0x31, 0x01])
+EXR_VERSION = 2
+EXR_LONG_NAMES = 0x400
+EXR_SHORT_NAME_BYTES = 31
+#: Codes of the header's values used: pixel type FLOAT, compression NONE, line order INCREASING_Y.
+EXR_FLOAT = 2
+EXR_NO_COMPRESSION = 0
+EXR_INCREASING_Y = 0
 
 
 def point_image_metadata(point_id: str, angles: BrdfAngles, exposures_s: Sequence[float],
@@ -35,18 +47,45 @@ def point_image_metadata(point_id: str, angles: BrdfAngles, exposures_s: Sequenc
 
 
 def write_luminance_exr(path: str | Path, luminance_cd_m2: np.ndarray, metadata: Mapping[str, Any]) -> None:
-    """Write channel `Y` (cd/m², uncompressed: module docstring). Scalar float attributes are stored as 32-bit
-    in EXR, so the exact metadata also goes in as one JSON string attribute `rig_metadata`."""
-    # OpenEXR writes non-contiguous arrays scrambled without error (upstream #1929).
-    pixels = np.ascontiguousarray(luminance_cd_m2, dtype=np.float32)
-    header: dict[str, Any] = {"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage,
-                              "rig_metadata": json.dumps(dict(metadata), default=float)}
+    """Write channel `Y` (cd/m², float32, uncompressed: module docstring). Scalar float attributes are stored as
+    32-bit in EXR, so the exact metadata also goes in as one JSON string attribute `rig_metadata`.
+
+    The file is laid out here (openexr.com, "OpenEXR File Layout"): a single-part scanline file is a header of
+    typed attributes, a table of the chunks' offsets and, uncompressed, one chunk per row (its row number,
+    byte count and little-endian pixels). The OpenEXR library takes 2.4× as long for the same bytes (7.1
+    against 3.0 ms for a 1390×1040 frame, measured), and a point with images saved is otherwise ~70 ms;
+    the library still reads every file (read_luminance_exr, and the tests).
+    """
+    pixels = np.asarray(luminance_cd_m2, dtype="<f4")
+    if pixels.ndim != 2 or 0 in pixels.shape:
+        raise ValueError(f"a luminance image is a non-empty 2-D array, not one of shape {pixels.shape}")
+    height, width = pixels.shape
+    attributes = {"rig_metadata": ("string", json.dumps(dict(metadata), default=float).encode())}
     for key, value in metadata.items():
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            header[key] = float(value)
+            attributes[key] = ("float", struct.pack("<f", value))
         elif isinstance(value, str):
-            header[key] = value
-    OpenEXR.File(header, {"Y": pixels}).write(str(path))
+            attributes[key] = ("string", value.encode())
+    window = struct.pack("<4i", 0, 0, width - 1, height - 1)
+    attributes |= {
+        "channels": ("chlist", b"Y\0" + struct.pack("<iB3xii", EXR_FLOAT, 0, 1, 1) + b"\0"),
+        "compression": ("compression", bytes([EXR_NO_COMPRESSION])), "dataWindow": ("box2i", window),
+        "displayWindow": ("box2i", window), "lineOrder": ("lineOrder", bytes([EXR_INCREASING_Y])),
+        "pixelAspectRatio": ("float", struct.pack("<f", 1.0)), "screenWindowCenter": ("v2f", bytes(8)),
+        "screenWindowWidth": ("float", struct.pack("<f", 1.0))}
+    long_names = any(len(name) > EXR_SHORT_NAME_BYTES for name in attributes)
+    header = b"".join([EXR_MAGIC, struct.pack("<i", EXR_VERSION | (EXR_LONG_NAMES if long_names else 0)),
+                       *(name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
+                         for name, (kind, value) in sorted(attributes.items())), b"\0"])
+    chunks = np.empty((height, 2 + width), "<i4")            # per row: y, byte count, pixels
+    chunks[:, 0] = np.arange(height)
+    chunks[:, 1] = 4 * width
+    chunks[:, 2:] = pixels.view("<i4")
+    offsets = len(header) + 8 * height + chunks.strides[0] * np.arange(height, dtype="<u8")
+    with open(path, "wb") as file:
+        file.write(header)
+        file.write(offsets.data)
+        file.write(chunks.data)
 
 
 def read_luminance_exr(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:

@@ -222,10 +222,10 @@ def test_a_filesystem_filling_up_mid_run_fails_cleanly_and_the_moved_folder_resu
 def test_an_image_that_does_not_fit_is_a_disk_full_error(tmp_path, monkeypatch):
     writer = DatasetWriter(tmp_path / "ds", {"campaign": {"name": "x"}})
 
-    def openexr_on_a_full_disk(path, pixels, metadata):      # what OpenEXR raises: not an OSError
+    def half_written(path, pixels, metadata):
         Path(path).write_bytes(b"half")
-        raise RuntimeError(f'Failed to write pixel data to image file "{path}". No space left on device.')
-    monkeypatch.setattr(ds_module, "write_luminance_exr", openexr_on_a_full_disk)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    monkeypatch.setattr(ds_module, "write_luminance_exr", half_written)
     with pytest.raises(DiskFullError, match="writing images/00-001.exr"):
         writer.write_image("00-001", np.zeros((4, 4)), {})
     assert not (tmp_path / "ds" / "images" / "00-001.exr").exists()     # no half image left
