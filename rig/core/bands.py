@@ -1,30 +1,68 @@
 """Row bands of an image run on worker threads: how the compiled kernels (the HDR merge, the simulated
 camera's) use every CPU. A kernel releases the GIL while it runs over its rows, so threads scale it;
-the bands are contiguous, so each thread streams its own part of the frame from memory."""
+the bands are contiguous, so each thread streams its own part of the frame from memory.
+
+`in_background` runs a whole task on one of the same threads, for independent work that would otherwise
+leave a CPU idle (numpy in the caller's thread meanwhile); its kernels then run in that thread alone.
+"""
 
 from __future__ import annotations
 
 import functools
 import os
+import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import TypeVar
+
+T = TypeVar("T")
 
 #: Images of at least this many pixels are split into one band of rows per CPU; below it the threads'
 #: hand-off costs more than they save.
 PARALLEL_MIN_PX = 1 << 16
 
+#: `.background` is set on a worker thread while it runs an in_background task.
+_thread = threading.local()
+
 
 def run_in_bands(rows: Callable[[int, int], object], height: int, width: int) -> None:
     """Call rows(y0, y1) over [0, height): in the caller's thread for an image under PARALLEL_MIN_PX pixels
-    (or one CPU), else one band of rows per CPU on the pool's threads, waiting for all of them. An
-    exception in a band is raised here."""
-    bands = workers() if height * width >= PARALLEL_MIN_PX else 1
+    (or one CPU), else one band of rows per CPU, the first in the caller's thread and the others on the
+    pool's, waiting for all of them. An
+    exception in a band is raised here. In an in_background task, always in its thread: a worker waiting for
+    bands queued behind it on its own pool could wait forever."""
+    bands = workers() if height * width >= PARALLEL_MIN_PX and not getattr(_thread, "background", False) else 1
     if bands == 1:
         rows(0, height)
         return
     edges = [height * i // bands for i in range(bands + 1)]
-    for done in [_pool(os.getpid()).submit(rows, y0, y1) for y0, y1 in zip(edges[:-1], edges[1:]) if y1 > y0]:
-        done.result()
+    others = [_pool(os.getpid()).submit(rows, y0, y1) for y0, y1 in zip(edges[1:-1], edges[2:]) if y1 > y0]
+    try:
+        rows(edges[0], edges[1])                               # the first band in the caller's thread
+    finally:
+        for band in others:
+            band.result()
+
+
+def in_background(task: Callable[[], T], pixels: int) -> Future[T]:
+    """Start task(), the work of `pixels` pixels, on a worker thread; its result (or exception) comes from the
+    Future's result(). Under PARALLEL_MIN_PX pixels it runs here and now: the hand-off would cost more."""
+    if pixels >= PARALLEL_MIN_PX:
+        return _pool(os.getpid()).submit(_as_background, task)
+    done: Future[T] = Future()
+    try:
+        done.set_result(task())
+    except Exception as exc:
+        done.set_exception(exc)
+    return done
+
+
+def _as_background(task: Callable[[], T]) -> T:
+    _thread.background = True
+    try:
+        return task()
+    finally:
+        _thread.background = False
 
 
 def workers() -> int:
