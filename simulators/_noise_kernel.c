@@ -9,11 +9,16 @@
  * version to the last bit or two of exp and log.
  *
  * Points of one image are dense on the lattice, so a lattice value is computed once: the corners of every
- * point lie in the block of nodes spanned by the points' cells, and a table over that block (zero: not
- * yet computed; a value is always positive) is filled as points need its nodes. Only the nodes used are
- * hashed: on a frame the glint's 4-D block is several times larger than the set of corners its pixels
- * touch, because the half vector and the position on the sample change together across the image. Where
- * the block is too large (points scattered far apart), each corner is hashed where it is needed.
+ * point lie in the block of nodes spanned by the points' cells, and a table over that block holds the
+ * values of the nodes the points use. Only those are computed: on a frame the glint's 4-D block is several
+ * times larger than the set of corners its pixels touch, because the half vector and the position on the
+ * sample change together across the image. Where the block is too large (points scattered far apart),
+ * each corner is computed where it is needed.
+ *
+ * A node's value is a long chain of dependent operations (the hash, ndtri, exp): computed as the points
+ * came to need them, behind a branch the CPU could not predict, they ran one at a time. So the work is
+ * done in passes over arrays, loops whose iterations are independent and do not branch on the data, with
+ * the chains of several nodes (or points) side by side in the code for the CPU to overlap.
  *
  * Coordinates are read through the buffer protocol (1-D float64, any stride; no numpy headers); the
  * output is a writable C-contiguous float64 buffer of the same length. The GIL is released.
@@ -26,12 +31,19 @@
 #include <string.h>
 
 #define MAX_AXES 4
-/* The table is used when it holds at most this many nodes per point: it is allocated zeroed (calloc), so
- * only the memory pages of nodes in use are ever touched, and a block far larger than its points (a grazing
- * view, whose pixels lie far apart along the sample) still costs less than hashing every corner ... */
+/* The table is used when it holds at most this many nodes per point: its values are touched only where
+ * used and its marks (a byte per node) are read 8 at a time, so that a block far larger than its points (a
+ * grazing view, whose pixels lie far apart along the sample) still costs less than computing every
+ * corner ... */
 #define TABLE_NODES_PER_POINT 1024
-/* ... and at most this many nodes in all (128 MB of address space). */
+/* ... and at most this many nodes in all (128 MB of address space; table indices fit 32 bits). */
 #define TABLE_MAX_NODES (1 << 24)
+/* Nodes valued side by side. */
+#define BATCH 8
+
+/* Functions taking constant counts first (axes, nodes side by side, the fastest axis of a table) are
+ * inlined for each, so that their loops unroll. */
+#define INLINE static inline __attribute__((always_inline))
 
 static uint64_t mix64(uint64_t z) {
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
@@ -39,22 +51,30 @@ static uint64_t mix64(uint64_t z) {
     return z ^ (z >> 31);
 }
 
-static double polevl(double x, const double *c, int n) {
-    double r = c[0];
-    for (int i = 1; i <= n; i++) r = r * x + c[i];
-    return r;
+/* Cephes' polevl and p1evl (leading coefficient 1, not stored) at x[0..n) into r. */
+INLINE void polevl(const int n, const double *x, const double *c, int degree, double *r) {
+    for (int j = 0; j < n; j++) r[j] = c[0];
+    for (int i = 1; i <= degree; i++)
+        for (int j = 0; j < n; j++) r[j] = r[j] * x[j] + c[i];
 }
 
-static double p1evl(double x, const double *c, int n) {      /* leading coefficient 1, not stored */
-    double r = x + c[0];
-    for (int i = 1; i < n; i++) r = r * x + c[i];
-    return r;
+INLINE void p1evl(const int n, const double *x, const double *c, int degree, double *r) {
+    for (int j = 0; j < n; j++) r[j] = x[j] + c[0];
+    for (int i = 1; i < degree; i++)
+        for (int j = 0; j < n; j++) r[j] = r[j] * x[j] + c[i];
 }
 
-/* Cephes ndtri: x with Φ(x) = y, for 0 < y < 1. */
-static double ndtri(double y) {
+/* Cephes ndtri, x with Φ(x) = y for 0 < y < 1, in its two branches: a rational function of y near the
+ * centre, of sqrt(−2 log y) in the tails. Cephes first folds y > 1 − e⁻² to 1 − y (exact), then tests
+ * y > e⁻²; a folded y is never above e⁻² (1 − fl(1 − e⁻²) is e⁻² exactly), so the centre is
+ * e⁻² < y ≤ 1 − e⁻² of the unfolded y, and nodes can be sorted by branch before either runs. */
+static const double NDTRI_EXPM2 = 0.13533528323661269189;    /* exp(-2) */
+
+static int ndtri_in_centre(double y) { return (y > NDTRI_EXPM2) & !(y > 1.0 - NDTRI_EXPM2); }
+
+/* x[j] = ndtri(y[j]) for y[0..n) in the centre. */
+INLINE void ndtri_centre(const int n, const double *y, double *x) {
     static const double s2pi = 2.50662827463100050242E0;
-    static const double expm2 = 0.13533528323661269189;    /* exp(-2) */
     static const double P0[5] = {-5.99633501014107895267E1, 9.80010754185999661536E1,
                                  -5.66762857469070293439E1, 1.39312609387279679503E1,
                                  -1.23916583867381258016E0};
@@ -62,6 +82,18 @@ static double ndtri(double y) {
                                  8.63602421390890590575E1, -2.25462687854119370527E2,
                                  2.00260212380060660359E2, -8.20372256168333339912E1,
                                  1.59056225126211695515E1, -1.18331621121330003142E0};
+    double t[BATCH], t2[BATCH], p[BATCH], q[BATCH];
+    for (int j = 0; j < n; j++) {
+        t[j] = y[j] - 0.5;
+        t2[j] = t[j] * t[j];
+    }
+    polevl(n, t2, P0, 4, p);
+    p1evl(n, t2, Q0, 8, q);
+    for (int j = 0; j < n; j++) x[j] = (t[j] + t[j] * (t2[j] * p[j] / q[j])) * s2pi;
+}
+
+/* x[j] = ndtri(y[j]) for y[0..n) in the tails. */
+INLINE void ndtri_tail(const int n, const double *y, double *x) {
     static const double P1[9] = {4.05544892305962419923E0, 3.15251094599893866154E1,
                                  5.71628192246421288162E1, 4.40805073893200834700E1,
                                  1.46849561928858024014E1, 2.18663306850790267539E0,
@@ -80,22 +112,25 @@ static double ndtri(double y) {
                                  1.37702099489081330271E0, 2.16236993594496635890E-1,
                                  1.34204006088543189037E-2, 3.28014464682127739104E-4,
                                  2.89247864745380683936E-6, 6.79019408009981274425E-9};
-    int negate = 1;
-    if (y > 1.0 - expm2) {
-        y = 1.0 - y;
-        negate = 0;
+    double s[BATCH], z[BATCH], p[BATCH], q[BATCH];
+    int upper[BATCH];
+    for (int j = 0; j < n; j++) {
+        upper[j] = y[j] > 1.0 - NDTRI_EXPM2;                    /* folded: x > 0 */
+        s[j] = sqrt(-2.0 * log(upper[j] ? 1.0 - y[j] : y[j]));
+        z[j] = 1.0 / s[j];
     }
-    if (y > expm2) {
-        y -= 0.5;
-        double y2 = y * y;
-        return (y + y * (y2 * polevl(y2, P0, 4) / p1evl(y2, Q0, 8))) * s2pi;
+    polevl(n, z, P1, 8, p);
+    p1evl(n, z, Q1, 8, q);
+    for (int j = 0; j < n; j++)
+        if (s[j] >= 8.0) {                                      /* y < e⁻³²: hardly ever */
+            polevl(1, &z[j], P2, 8, &p[j]);
+            p1evl(1, &z[j], Q2, 8, &q[j]);
+        }
+    for (int j = 0; j < n; j++) {
+        double x0 = s[j] - log(s[j]) / s[j];
+        double x1 = z[j] * p[j] / q[j];
+        x[j] = upper[j] ? x0 - x1 : -(x0 - x1);
     }
-    double x = sqrt(-2.0 * log(y));
-    double x0 = x - log(x) / x;
-    double z = 1.0 / x;
-    double x1 = x < 8.0 ? z * polevl(z, P1, 8) / p1evl(z, Q1, 8) : z * polevl(z, P2, 8) / p1evl(z, Q2, 8);
-    x = x0 - x1;
-    return negate ? -x : x;
 }
 
 typedef struct {
@@ -104,20 +139,30 @@ typedef struct {
     double sigma, shift;   /* log-normal: exp(sigma·z − shift) */
 } Lattice;
 
-/* The lattice value at integer node (nodes[0..n)): texture.noise_lattice. */
-static double node_value(const Lattice *L, const int64_t *node) {
-    uint64_t h = L->seeded;
-    for (int k = 0; k < L->n; k++) h = mix64(h ^ (uint64_t)node[k]);
-    double u = ((double)(h >> 11) + 0.5) * 0x1p-53;
-    return exp(L->sigma * ndtri(u) - L->shift);
+/* A node's value (texture.noise_lattice) in two steps, so that nodes can be sorted by ndtri's branch in
+ * between: the uniform in (0, 1) at the end of its hash chain (texture.hash_uniform) ... */
+static double uniform(uint64_t h) { return ((double)(h >> 11) + 0.5) * 0x1p-53; }
+
+/* ... and the log-normal quantiles of n uniforms (texture.lognormal_unit_mean), all in ndtri's centre or
+ * all not. */
+INLINE void lognormal(const int n, const int centre, const Lattice *L, const double *u, double *v) {
+    double z[BATCH];
+    if (centre)
+        ndtri_centre(n, u, z);
+    else
+        ndtri_tail(n, u, z);
+    for (int j = 0; j < n; j++) v[j] = exp(L->sigma * z[j] - L->shift);
 }
 
-/* The value at corner c of `cell` (+1 along axis k where bit k of c is set), stored at `known` if not NULL. */
-static double corner_value(const Lattice *L, const int64_t *cell, int c, double *known) {
-    int64_t node[MAX_AXES];
-    for (int k = 0; k < L->n; k++) node[k] = cell[k] + ((c >> k) & 1);
-    double v = node_value(L, node);
-    if (known) *known = v;
+/* The value of integer node node[0..axes). */
+INLINE double node_value(const int axes, const Lattice *L, const int64_t *node) {
+    uint64_t h = L->seeded;
+    for (int k = 0; k < axes; k++) h = mix64(h ^ (uint64_t)node[k]);
+    double u = uniform(h), v;
+    if (ndtri_in_centre(u))
+        lognormal(1, 1, L, &u, &v);
+    else
+        lognormal(1, 0, L, &u, &v);
     return v;
 }
 
@@ -153,75 +198,384 @@ static double coordinate(const Buffer *b, Py_ssize_t i) {
     return *(const double *)((const char *)b->view.buf + i * b->view.strides[0]);
 }
 
-static double smoothstep(double t) { return t * t * (3.0 - 2.0 * t); }
+/* floor(c), exactly (|c| < 2^62), without libm (whose floor is a call on baseline x86-64). */
+static int64_t floor_int(double c) {
+    int64_t t = (int64_t)c;
+    return t - ((double)t > c);
+}
 
-/* Points [i0, i1) with `axes` axes, their lattice values from `table` (NULL: hashed per corner); inlined
- * for each axis count, so that the loops over axes and corners unroll. */
-static inline __attribute__((always_inline)) void
-blend_points(const int axes, const Buffer *coords, const Lattice *L, double *table, const int64_t *low,
-             const int64_t *offset, const int64_t *stride, double *out, Py_ssize_t i0, Py_ssize_t i1) {
-    const int corners = 1 << axes;
-    for (Py_ssize_t i = i0; i < i1; i++) {
-        double v[1 << MAX_AXES], w[MAX_AXES];
-        int64_t cell[MAX_AXES], base = 0;
+/* Points are done two at a time, side by side in the two lanes of an SSE2 (or NEON) register: GCC's vector
+ * extension, whose operators work lane by lane as on doubles (the same operations, so the same results). */
+typedef double v2df __attribute__((vector_size(2 * sizeof(double))));
+typedef int64_t v2di __attribute__((vector_size(2 * sizeof(double))));   /* comparisons: −1 where true */
+
+/* Points i and i + 1, or i twice for the last of an odd count. */
+static void pair_at(Py_ssize_t *at, Py_ssize_t i, Py_ssize_t i1) {
+    at[0] = i;
+    at[1] = i + 1 < i1 ? i + 1 : i;
+}
+
+static v2df coordinates(const Buffer *b, const Py_ssize_t *at) {
+    return (v2df){coordinate(b, at[0]), coordinate(b, at[1])};
+}
+
+/* floor(c) for |c| < 2^51, in both lanes, without libm: c ± 2^52 lies where doubles are 1 apart, so
+ * (c ± 2^52) ∓ 2^52 is c rounded to an integer, exactly; less 1 where that rose above c. */
+static v2df floor_near(v2df c) {
+    const v2di sign = {INT64_MIN, INT64_MIN};
+    const v2df big = {0x1p52, 0x1p52}, one = {1.0, 1.0};
+    v2df signed_big = (v2df)(((v2di)c & sign) | (v2di)big);
+    v2df rounded = (c + signed_big) - signed_big;
+    return rounded - (v2df)((v2di)one & (v2di)(rounded > c));
+}
+
+static v2df smoothstep(v2df t) { return t * t * (3.0 - 2.0 * t); }
+
+/* The multilinear blend of corner values v (overwritten; corner c is +1 along axis k where bit k of c is
+ * set) with weights w: texture.blend. */
+INLINE v2df blend(const int axes, v2df *v, const v2df *w) {
+    for (int k = 0, m = 1 << axes; k < axes; k++, m >>= 1)      /* pairs (2i, 2i+1) differ along axis k */
+        for (int i = 0; i < m / 2; i++) v[i] = (v[2 * i + 1] - v[2 * i]) * w[k] + v[2 * i];
+    return v[0];
+}
+
+/* Points [i0, i1) without a table: each corner computed where it is needed. */
+INLINE void noise_per_corner(const int axes, const Buffer *coords, const Lattice *L, double *out,
+                             Py_ssize_t i0, Py_ssize_t i1) {
+    for (Py_ssize_t i = i0; i < i1; i += 2) {
+        Py_ssize_t at[2];
+        int64_t cell[2][MAX_AXES], node[MAX_AXES];
+        v2df v[1 << MAX_AXES], w[MAX_AXES];
+        pair_at(at, i, i1);
         for (int k = 0; k < axes; k++) {
-            double c = coordinate(&coords[k], i);
-            int64_t t = (int64_t)c;                       /* floor(c), exactly (|c| < 2^62), without libm */
-            cell[k] = t - ((double)t > c);
-            double f = (double)cell[k];
-            w[k] = smoothstep(c - f);
-            base += table ? (cell[k] - low[k]) * stride[k] : 0;
+            v2df c = coordinates(&coords[k], at);
+            for (int j = 0; j < 2; j++) cell[j][k] = floor_int(c[j]);
+            w[k] = smoothstep(c - (v2df){(double)cell[0][k], (double)cell[1][k]});
         }
-        for (int c = 0; c < corners; c++) {
-            double *known = table ? &table[base + offset[c]] : NULL;
-            v[c] = known && *known != 0.0 ? *known : corner_value(L, cell, c, known);
-        }
-        for (int k = 0, m = corners; k < axes; k++, m >>= 1)     /* pairs (2j, 2j+1) differ along axis k */
-            for (int j = 0; j < m / 2; j++) v[j] = (v[2 * j + 1] - v[2 * j]) * w[k] + v[2 * j];
-        out[i] = v[0];
+        for (int c = 0; c < 1 << axes; c++)
+            for (int j = 0; j < 2; j++) {
+                for (int k = 0; k < axes; k++) node[k] = cell[j][k] + ((c >> k) & 1);
+                v[c][j] = node_value(axes, L, node);
+            }
+        v2df r = blend(axes, v, w);
+        out[at[0]] = r[0];
+        out[at[1]] = r[1];
     }
 }
 
-/* Value noise at points [i0, i1) into out; 0 if a coordinate is not finite (or beyond 2^62). */
-static int noise_points(const Buffer *coords, const Lattice *L, double *out, Py_ssize_t i0, Py_ssize_t i1) {
-    const int axes = L->n;
-    double lo[MAX_AXES], hi[MAX_AXES];
-    int finite = 1;
+/* The block of nodes a table covers: from `low`, `shape` nodes along each axis, axis order[0] fastest
+ * (stride 1), then the others in their order (index strides `stride`); corner c of a cell is `offset[c]`
+ * after its corner 0. The longest axis is the fastest: a frame's glint uses runs of nodes along the
+ * sample's x, where the half vector's axes span a few nodes, so that the values in use lie on half as many
+ * cache lines and memory pages as with axis 0 fastest.
+ *
+ * The nodes share the start of their hash chain, through their first axes: it is computed once for each
+ * combination of the first `prefix` axes' coordinates, the first `prefix_nodes` indices (so those must be
+ * the fastest axes: the prefix is empty or takes the fastest in), and each node's chain goes on from
+ * there. A combination costs a mix64 or so, as does each axis after the prefix for each node hashed,
+ * so the prefix takes all the axes it can while they have fewer combinations than there are points (a
+ * frame's glint: the half vector's two and the sample's x, leaving 1 mix64 of 4 per node). */
+typedef struct {
+    int64_t low[MAX_AXES], shape[MAX_AXES], stride[MAX_AXES], offset[1 << MAX_AXES];
+    int order[MAX_AXES];
+    int prefix;
+    int64_t prefix_nodes;
+    double inverse_shape[MAX_AXES], inverse_prefix_nodes;      /* 1 / each, rounded */
+} Block;
+
+/* a / b for table indices a < 2^24, b ≤ 2^24, from inverse = 1 / b rounded: the product is within a few
+ * 2^-53 (relative) of the exact quotient, whose fractional part is either 0 or at least 1/b ≥ 2^-24, so it
+ * truncates to the quotient or, for an exact one, 1 below; the remainder tells which. (Dividing, exact in
+ * double too, does not pipeline.) */
+static int64_t quotient(int64_t a, int64_t b, double inverse) {
+    int64_t q = (int64_t)((double)a * inverse);
+    return q + (a - q * b >= b);
+}
+
+/* The hash chains through the prefix axes, H[0..B->prefix_nodes), their coordinates x counted in the
+ * order of the table's indices. */
+static void hash_prefix(const Lattice *L, const Block *B, uint64_t *H) {
+    int64_t x[MAX_AXES] = {0};
+    for (int64_t r = 0; r < B->prefix_nodes; r++) {
+        uint64_t h = L->seeded;
+        for (int k = 0; k < B->prefix; k++) h = mix64(h ^ (uint64_t)(B->low[k] + x[k]));
+        H[r] = h;
+        for (int i = 0; i < B->prefix && ++x[B->order[i]] == B->shape[B->order[i]]; i++) x[B->order[i]] = 0;
+    }
+}
+
+/* The uniforms hashed from the nodes at table indices index[0..BATCH), from their chains H through the
+ * prefix axes: an index is a number in mixed radix, B->prefix_nodes then the shape of each later axis in
+ * the table's order. */
+INLINE void block_uniforms(const int axes, const Block *B, const uint64_t *H, const uint32_t *index,
+                           double *u) {
+    uint64_t h[BATCH];
+    int64_t node[BATCH][MAX_AXES], rest[BATCH];
+    for (int j = 0; j < BATCH; j++) {
+        rest[j] = quotient(index[j], B->prefix_nodes, B->inverse_prefix_nodes);
+        h[j] = H[index[j] - rest[j] * B->prefix_nodes];
+    }
+    for (int i = 0; i < axes; i++)
+        if (i >= B->prefix)
+            for (int j = 0; j < BATCH; j++) {
+                int k = B->order[i];
+                int64_t next = i + 1 < axes ? quotient(rest[j], B->shape[k], B->inverse_shape[k]) : 0;
+                node[j][k] = B->low[k] + rest[j] - next * B->shape[k];
+                rest[j] = next;
+            }
+    for (int k = 0; k < axes; k++)
+        if (k >= B->prefix)
+            for (int j = 0; j < BATCH; j++) h[j] = mix64(h[j] ^ (uint64_t)node[j][k]);
+    for (int j = 0; j < BATCH; j++) u[j] = uniform(h[j]);
+}
+
+/* Lists of nodes are done BATCH at a time, the last batch repeating the last node. */
+static void pad(uint32_t *list, size_t n) {
+    for (int q = 0; n && q < BATCH; q++) list[n + q] = list[n - 1];
+}
+
+/* Points at[0..2): the corners of their cells marked in `marks` (corners c and c + 2^fastest, neighbours,
+ * at once), and the index of their corner 0 kept in bases[at − i0]. A point in the cell of the point
+ * before (a frame's glint has 3 or 4 in a row) marks nothing new: skipping it pays for the branch. */
+INLINE void mark_corners(const int axes, const int fastest, const Buffer *coords, const Py_ssize_t *at,
+                         const Block *B, unsigned char *marks, uint32_t *bases, Py_ssize_t i0,
+                         int64_t *last) {
+    static const unsigned char both[2] = {1, 1};
+    int64_t base[2] = {0, 0};
+    for (int k = 0; k < axes; k++)
+        for (int j = 0; j < 2; j++)
+            base[j] += (floor_int(coordinate(&coords[k], at[j])) - B->low[k]) * B->stride[k];
+    for (int j = 0; j < 2; j++) {
+        if (base[j] != *last)
+            for (int c = 0; c < 1 << axes; c++)
+                if (!(c >> fastest & 1)) memcpy(marks + base[j] + B->offset[c], both, 2);
+        *last = base[j];
+        bases[at[j] - i0] = (uint32_t)base[j];
+    }
+}
+
+/* Points at[0..2) blended from the table, their cells' floor found again in both lanes at once. */
+INLINE void blend_corners(const int axes, const int fastest, const Buffer *coords, const Py_ssize_t *at,
+                          const Block *B, const double *table, const uint32_t *bases, Py_ssize_t i0,
+                          double *out) {
+    v2df v[1 << MAX_AXES], w[MAX_AXES];
     for (int k = 0; k < axes; k++) {
-        lo[k] = INFINITY;
-        hi[k] = -INFINITY;
-        for (Py_ssize_t i = i0; i < i1; i++) {
-            double c = coordinate(&coords[k], i);
-            finite &= isfinite(c) && fabs(c) < 0x1p62;
-            lo[k] = c < lo[k] ? c : lo[k];
-            hi[k] = c > hi[k] ? c : hi[k];
+        v2df c = coordinates(&coords[k], at);
+        w[k] = smoothstep(c - floor_near(c));
+    }
+    for (int c = 0; c < 1 << axes; c++)
+        if (!(c >> fastest & 1)) {                    /* corners c and c + 2^fastest, neighbours */
+            const double *first = table + bases[at[0] - i0] + B->offset[c];
+            const double *second = table + bases[at[1] - i0] + B->offset[c];
+            v[c] = (v2df){first[0], second[0]};
+            v[c | 1 << fastest] = (v2df){first[1], second[1]};
+        }
+    v2df r = blend(axes, v, w);
+    out[at[0]] = r[0];
+    out[at[1]] = r[1];
+}
+
+/* The passes over points [i0, i1): pairs i, i + 1 (so that their addresses step), then an odd last point
+ * twice. */
+INLINE void mark_points(const int axes, const int fastest, const Buffer *coords, const Block *B,
+                        unsigned char *marks, uint32_t *bases, Py_ssize_t i0, Py_ssize_t i1) {
+    int64_t last = -1;
+    Py_ssize_t i = i0;
+    for (; i + 1 < i1; i += 2) {
+        Py_ssize_t at[2] = {i, i + 1};
+        mark_corners(axes, fastest, coords, at, B, marks, bases, i0, &last);
+    }
+    if (i < i1) {
+        Py_ssize_t at[2] = {i, i};
+        mark_corners(axes, fastest, coords, at, B, marks, bases, i0, &last);
+    }
+}
+
+INLINE void blend_points(const int axes, const int fastest, const Buffer *coords, const Block *B,
+                         const double *table, const uint32_t *bases, Py_ssize_t i0, Py_ssize_t i1,
+                         double *out) {
+    Py_ssize_t i = i0;
+    for (; i + 1 < i1; i += 2) {
+        Py_ssize_t at[2] = {i, i + 1};
+        blend_corners(axes, fastest, coords, at, B, table, bases, i0, out);
+    }
+    if (i < i1) {
+        Py_ssize_t at[2] = {i, i};
+        blend_corners(axes, fastest, coords, at, B, table, bases, i0, out);
+    }
+}
+
+/* Points [i0, i1) through a table of the values in block B, in passes:
+ * 1. mark the corners of the points' cells in `marks` (a byte per node, zeroed, and 8 more), keeping the
+ *    index of each point's corner 0 in `bases` (one per point);
+ * 2. list the nodes marked, 8 at a time, in `todo` (room for all plus BATCH);
+ * 3. hash them from the prefix chains `H` (the uniform kept in `table` meanwhile) and sort them by
+ *    ndtri's branch, the centre's kept in `todo` and the tails' moved to `tail` (as much room);
+ * 4. compute their values, BATCH side by side;
+ * 5. blend the points' corners.
+ * The passes over the points take the table's fastest axis as a constant. */
+INLINE void noise_with_table(const int axes, const Buffer *coords, const Lattice *L, double *out,
+                             Py_ssize_t i0, Py_ssize_t i1, const Block *B, unsigned char *marks,
+                             uint32_t *bases, uint32_t *todo, uint32_t *tail, uint64_t *H, double *table) {
+    switch (B->order[0]) {
+    case 0: mark_points(axes, 0, coords, B, marks, bases, i0, i1); break;
+    case 1: if (axes > 1) mark_points(axes, 1, coords, B, marks, bases, i0, i1); break;
+    case 2: if (axes > 2) mark_points(axes, 2, coords, B, marks, bases, i0, i1); break;
+    default: if (axes > 3) mark_points(axes, 3, coords, B, marks, bases, i0, i1); break;
+    }
+    const int64_t nodes = B->stride[B->order[axes - 1]] * B->shape[B->order[axes - 1]];
+    size_t used = 0;
+    for (int64_t index = 0; index < nodes; index += 8) {
+        uint64_t any;
+        memcpy(&any, marks + index, sizeof any);
+        if (any) {
+            unsigned char in_use[8];
+            memcpy(in_use, &any, sizeof in_use);
+            for (int t = 0; t < 8; t++) {
+                todo[used] = (uint32_t)(index + t);
+                used += in_use[t];
+            }
         }
     }
-    if (!finite || i1 <= i0) return finite;
-    /* the block [floor(lo), floor(hi) + 1] per axis, axis 0 fastest: the glint's half-vector axes span a few
-     * nodes, so a point's corners share cache lines */
-    int64_t low[MAX_AXES], stride[MAX_AXES], offset[1 << MAX_AXES];
-    double nodes = 1.0;
+    pad(todo, used);
+    hash_prefix(L, B, H);
+    size_t centre = 0, tails = 0;
+    for (size_t j = 0; j < used; j += BATCH) {
+        uint32_t index[BATCH];
+        double u[BATCH];
+        for (int q = 0; q < BATCH; q++) index[q] = todo[j + q];
+        block_uniforms(axes, B, H, index, u);
+        for (int q = 0; q < BATCH; q++) {
+            int listed = j + q < used, in_centre = ndtri_in_centre(u[q]);
+            table[index[q]] = u[q];
+            todo[centre] = index[q];                     /* centre <= j + q: an entry already read */
+            tail[tails] = index[q];
+            centre += listed & in_centre;
+            tails += listed & !in_centre;
+        }
+    }
+    pad(todo, centre);
+    pad(tail, tails);
+    for (size_t j = 0; j < centre; j += BATCH) {
+        double u[BATCH], v[BATCH];
+        for (int q = 0; q < BATCH; q++) u[q] = table[todo[j + q]];
+        lognormal(BATCH, 1, L, u, v);
+        for (int q = 0; q < BATCH; q++) table[todo[j + q]] = v[q];
+    }
+    for (size_t j = 0; j < tails; j += BATCH) {
+        double u[BATCH], v[BATCH];
+        for (int q = 0; q < BATCH; q++) u[q] = table[tail[j + q]];
+        lognormal(BATCH, 0, L, u, v);
+        for (int q = 0; q < BATCH; q++) table[tail[j + q]] = v[q];
+    }
+    switch (B->order[0]) {
+    case 0: blend_points(axes, 0, coords, B, table, bases, i0, i1, out); break;
+    case 1: if (axes > 1) blend_points(axes, 1, coords, B, table, bases, i0, i1, out); break;
+    case 2: if (axes > 2) blend_points(axes, 2, coords, B, table, bases, i0, i1, out); break;
+    default: if (axes > 3) blend_points(axes, 3, coords, B, table, bases, i0, i1, out); break;
+    }
+}
+
+/* The range [lo, hi] of each coordinate over points [i0, i1) (two at a time, so that the minima and
+ * maxima are chains side by side); 0 if one is not finite (or beyond 2^62). */
+INLINE int extent(const int axes, const Buffer *coords, Py_ssize_t i0, Py_ssize_t i1, double *lo, double *hi) {
+    double low[MAX_AXES][2], high[MAX_AXES][2];
+    int finite = 1;
+    for (int k = 0; k < axes; k++)
+        for (int j = 0; j < 2; j++) {
+            low[k][j] = INFINITY;
+            high[k][j] = -INFINITY;
+        }
+    for (Py_ssize_t i = i0, at[2]; i < i1; i += 2) {
+        pair_at(at, i, i1);
+        for (int k = 0; k < axes; k++)
+            for (int j = 0; j < 2; j++) {
+                double c = coordinate(&coords[k], at[j]);
+                finite &= fabs(c) < 0x1p62;                 /* false for NaN and ±inf too */
+                low[k][j] = c < low[k][j] ? c : low[k][j];
+                high[k][j] = c > high[k][j] ? c : high[k][j];
+            }
+    }
     for (int k = 0; k < axes; k++) {
-        low[k] = (int64_t)floor(lo[k]);
-        stride[k] = (int64_t)nodes;
+        lo[k] = low[k][0] < low[k][1] ? low[k][0] : low[k][1];
+        hi[k] = high[k][0] > high[k][1] ? high[k][0] : high[k][1];
+    }
+    return finite;
+}
+
+/* Value noise at points [i0, i1) into out, for `axes` axes; 0 if a coordinate is not finite (or beyond
+ * 2^62). */
+INLINE int noise_points(const int axes, const Buffer *coords, const Lattice *L, double *out, Py_ssize_t i0,
+                        Py_ssize_t i1) {
+    double lo[MAX_AXES], hi[MAX_AXES];
+    if (i1 <= i0) return 1;
+    if (!extent(axes, coords, i0, i1, lo, hi)) return 0;
+    /* the block [floor(lo), floor(hi) + 1] per axis; the table's blending takes coordinates under 2^51 */
+    double nodes = 1.0;
+    int near = 1;
+    for (int k = 0; k < axes; k++) {
         nodes *= floor(hi[k]) - floor(lo[k]) + 2.0;
+        near &= fabs(lo[k]) < 0x1p51 && fabs(hi[k]) < 0x1p51;
     }
+    unsigned char *marks = NULL;
+    uint32_t *bases = NULL, *todo = NULL, *tail = NULL;
+    uint64_t *H = NULL;
     double *table = NULL;
-    if (nodes <= (double)TABLE_NODES_PER_POINT * (double)(i1 - i0) && nodes <= TABLE_MAX_NODES)
-        table = calloc((size_t)nodes, sizeof(double));           /* NULL (no memory): hash per corner */
-    for (int c = 0; c < (1 << axes); c++) {                 /* corner c's table index from its cell's */
-        offset[c] = 0;
-        for (int k = 0; k < axes; k++) offset[c] += ((c >> k) & 1) * stride[k];
+    if (near && nodes <= (double)TABLE_NODES_PER_POINT * (double)(i1 - i0) && nodes <= TABLE_MAX_NODES) {
+        Block B;
+        int fastest = 0;                                    /* the longest axis (the first of equals) */
+        for (int k = 0; k < axes; k++) {
+            B.low[k] = (int64_t)floor(lo[k]);
+            B.shape[k] = (int64_t)floor(hi[k]) - B.low[k] + 2;
+            B.inverse_shape[k] = 1.0 / (double)B.shape[k];
+            fastest = B.shape[k] > B.shape[fastest] ? k : fastest;
+        }
+        B.order[0] = fastest;
+        for (int k = 0, i = 1; k < axes; k++)
+            if (k != fastest) B.order[i++] = k;
+        for (int i = 0, stride = 1; i < axes; stride *= B.shape[B.order[i++]]) B.stride[B.order[i]] = stride;
+        for (int c = 0; c < (1 << axes); c++) {             /* corner c's table index from its cell's */
+            B.offset[c] = 0;
+            for (int k = 0; k < axes; k++) B.offset[c] += ((c >> k) & 1) * B.stride[k];
+        }
+        B.prefix = 0;
+        B.prefix_nodes = 1;
+        for (int64_t p = 1, combinations = 1; p <= axes && (combinations *= B.shape[p - 1]) <= i1 - i0; p++)
+            if (p > fastest) {
+                B.prefix = (int)p;
+                B.prefix_nodes = combinations;
+            }
+        B.inverse_prefix_nodes = 1.0 / (double)B.prefix_nodes;
+        /* the lists have room for every node the points can use: allocated, not touched, beyond that */
+        size_t room = (size_t)fmin(nodes, (double)(1 << axes) * (double)(i1 - i0)) + BATCH;
+        marks = calloc((size_t)nodes + 8, 1);
+        bases = malloc((size_t)(i1 - i0) * sizeof(uint32_t));
+        todo = malloc(room * sizeof(uint32_t));
+        tail = malloc(room * sizeof(uint32_t));
+        H = malloc((size_t)B.prefix_nodes * sizeof(uint64_t));
+        table = malloc((size_t)nodes * sizeof(double));
+        if (marks && bases && todo && tail && H && table)
+            noise_with_table(axes, coords, L, out, i0, i1, &B, marks, bases, todo, tail, H, table);
     }
-    switch (axes) {
-    case 1: blend_points(1, coords, L, table, low, offset, stride, out, i0, i1); break;
-    case 2: blend_points(2, coords, L, table, low, offset, stride, out, i0, i1); break;
-    case 3: blend_points(3, coords, L, table, low, offset, stride, out, i0, i1); break;
-    default: blend_points(4, coords, L, table, low, offset, stride, out, i0, i1); break;
-    }
+    if (!(marks && bases && todo && tail && H && table))  /* too large a block, far out, or no memory */
+        noise_per_corner(axes, coords, L, out, i0, i1);
+    free(marks);
+    free(bases);
+    free(todo);
+    free(tail);
+    free(H);
     free(table);
     return 1;
+}
+
+/* Value noise at points [i0, i1) into out; 0 if a coordinate is not finite (or beyond 2^62). */
+static int noise(const Buffer *coords, const Lattice *L, double *out, Py_ssize_t i0, Py_ssize_t i1) {
+    switch (L->n) {
+    case 1: return noise_points(1, coords, L, out, i0, i1);
+    case 2: return noise_points(2, coords, L, out, i0, i1);
+    case 3: return noise_points(3, coords, L, out, i0, i1);
+    default: return noise_points(4, coords, L, out, i0, i1);
+    }
 }
 
 /* value_noise(coords, contrast, seed, out, start, stop): see the module comment. Points [start, stop) only,
@@ -259,7 +613,7 @@ static PyObject *value_noise(PyObject *Py_UNUSED(module), PyObject *args) {
     Lattice L = {(int)n_axes, mix64((uint64_t)seed), sigma, sigma * sigma / 2};
     int finite;
     Py_BEGIN_ALLOW_THREADS
-    finite = noise_points(bufs, &L, (double *)bufs[MAX_AXES].view.buf, start, stop);
+    finite = noise(bufs, &L, (double *)bufs[MAX_AXES].view.buf, start, stop);
     Py_END_ALLOW_THREADS
     release(bufs, MAX_AXES + 1);
     if (!finite) return PyErr_Format(PyExc_ValueError, "value noise needs finite lattice coordinates under 2**62");

@@ -32,6 +32,25 @@ def test_dense_points_equal_the_numpy_value_noise(axes):
     np.testing.assert_allclose(value_noise(coords, 0.2, 11), numpy_value_noise(coords, 0.2, 11), rtol=RTOL)
 
 
+@pytest.mark.parametrize(("axes", "longest"), [(axes, k) for axes in (2, 3, 4) for k in range(axes)])
+@pytest.mark.parametrize("points", [1, 2, 7, 60, 3001])
+def test_any_axis_can_be_the_table_s_fastest(axes, longest, points):
+    """The table's fastest axis is the longest; the prefix of the hash chain shared by its nodes is longer
+    the more points there are (none, some axes or all of them)."""
+    rng = np.random.default_rng(10 * axes + longest)
+    coords = [rng.uniform(-2.5, 1.5, points) + 7.0 * k for k in range(axes)]
+    coords[longest] = rng.uniform(-40.0, 35.0, points)
+    np.testing.assert_allclose(value_noise(coords, 0.3, 21), numpy_value_noise(coords, 0.3, 21), rtol=RTOL)
+
+
+def test_points_near_each_other_far_out_equal_the_numpy_value_noise():
+    """Beyond 2^51 (no table there) and just below it, where the table finds floors by rounding at 2^52."""
+    rng = np.random.default_rng(5)
+    for offset in (2.0 ** 51 - 64.0, 2.0 ** 51 + 1024.0, -(2.0 ** 51) + 32.0, -(2.0 ** 60)):
+        coords = [offset + rng.uniform(0.0, 30.0, 301), rng.uniform(-3.0, 3.0, 301)]
+        np.testing.assert_allclose(value_noise(coords, 0.2, 4), numpy_value_noise(coords, 0.2, 4), rtol=RTOL)
+
+
 def test_scattered_points_hashed_per_corner_equal_the_numpy_value_noise():
     """Points far apart on the lattice: too large a block for the table, every corner is hashed."""
     rng = np.random.default_rng(3)
