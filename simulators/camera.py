@@ -12,10 +12,13 @@ applies the lens's cos⁴ fall-off, PRNU, DSNU and the optional nonlinearity.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+import numpy.typing as npt
 
 from rig.config.rigfile import camera_optics
-from rig.core.bands import in_background
+from rig.core.bands import PARALLEL_MIN_PX, shared
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, Window
 from rig.drivers.interfaces import LuminanceCamera
@@ -35,6 +38,8 @@ except ImportError:            # installed without a C compiler: lit_view runs i
 SPOT_OUTLINE_POINTS = 256
 #: Pixels added around the outline's image: its sagitta plus pixel centres (+0.5) and rounding.
 SPOT_MARGIN_PX = 2
+#: Parts of a frame's glint shared between two CPUs (rig.core.bands.shared): enough to even them out.
+GLINT_PARTS = 8
 
 
 def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, frame: np.ndarray,
@@ -99,11 +104,14 @@ class SimCamera(LuminanceCamera):
     def identity(self) -> str:
         return "simulated LMK 98-4 (rig sim)"
 
-    def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
+    def luminance(self, window: Window, illuminance_normal_lx: float,
+                  dtype: npt.DTypeLike = np.float64) -> np.ndarray:
         """Noise-free luminance (cd/m², (height, width)) reaching the sensor at the true (physical) motor
-        angles: the scene's, through the filter-wheel filter in the beam (true transmission), if any."""
+        angles: the scene's, through the filter-wheel filter in the beam (true transmission), if any. The
+        sensor reads float32 (half the memory of a full frame to fill and read)."""
         transmission = self.world.transmission()       # of the filter in the beam, if any
-        lum = np.full((window.height, window.width), self.world.config.simulation.ambient_cd_m2 * transmission)
+        lum = np.full((window.height, window.width), self.world.config.simulation.ambient_cd_m2 * transmission,
+                      dtype=dtype)
         scene = self._scene(window)
         if scene is not None:
             box, lit, per_lux = scene
@@ -141,9 +149,15 @@ class SimCamera(LuminanceCamera):
             return None
         lit, xy, wo = lit_view(self.optics, a, b, box, frame, world.config.geometry.spot_diameter_m / 2)
         wi = LAMP_DIRECTION_GCS @ frame
-        # the costliest factor, compiled, on another CPU meanwhile: numpy's part takes about as long
-        glint = in_background(lambda: self.glint(xy[:, 0], xy[:, 1], wi, wo), len(xy))
-        return box, lit, world.brdf(wi, wo) * wi[2] * self.texture(xy[:, 0], xy[:, 1]) * glint.result()
+        # The glint, the costliest factor, in parts on another CPU while this one does numpy's part, then helps.
+        glint = np.empty(len(xy))
+
+        def glint_part(part: slice) -> None:
+            glint[part] = self.glint(xy[part, 0], xy[part, 1], wi, wo[part])
+        edges = np.linspace(0, len(xy), (GLINT_PARTS if len(xy) >= PARALLEL_MIN_PX else 1) + 1).astype(int)
+        rest = shared([functools.partial(glint_part, slice(i0, i1)) for i0, i1 in zip(edges[:-1], edges[1:])],
+                      lambda: world.brdf(wi, wo) * wi[2] * self.texture(xy[:, 0], xy[:, 1]), len(xy))
+        return box, lit, rest * glint
 
     def _spot_bounds(self, window: Window, normal_gcs: np.ndarray, a_rad: float, b_rad: float) -> Window | None:
         """The part of `window` the spot can be seen in: the bounding box of its outline's image
@@ -187,7 +201,7 @@ class SimCamera(LuminanceCamera):
             raise DeviceError("camera", f"exposure time {exposure_s!r} s is not a number")
         t = float(np.clip(exposure_s, self.sensor.min_exposure_s, self.sensor.max_exposure_s))
         start = self.world.clock.now()
-        lum = 0.0 if dark else self.luminance(window, self.world.illuminance_normal_lx(start + t / 2))
+        lum = 0.0 if dark else self.luminance(window, self.world.illuminance_normal_lx(start + t / 2), np.float32)
         pixels = self.model.read(self.world.rng, lum, t, window)
         fraction = (window.width * window.height) / (full.width * full.height)
         duration = t + self.world.config.camera.readout_s * fraction
@@ -212,5 +226,6 @@ class UniformSourceCamera(SimCamera):
     def identity(self) -> str:
         return "simulated camera before a uniform source (rig sim)"
 
-    def luminance(self, window: Window, illuminance_normal_lx: float) -> np.ndarray:
-        return np.full((window.height, window.width), self.source_cd_m2)
+    def luminance(self, window: Window, illuminance_normal_lx: float,
+                  dtype: npt.DTypeLike = np.float64) -> np.ndarray:
+        return np.full((window.height, window.width), self.source_cd_m2, dtype=dtype)

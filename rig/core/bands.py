@@ -2,8 +2,8 @@
 camera's) use every CPU. A kernel releases the GIL while it runs over its rows, so threads scale it;
 the bands are contiguous, so each thread streams its own part of the frame from memory.
 
-`in_background` runs a whole task on one of the same threads, for independent work that would otherwise
-leave a CPU idle (numpy in the caller's thread meanwhile); its kernels then run in that thread alone.
+`shared` runs independent parts of a job on one of the same threads while the caller does other work (numpy,
+which would otherwise leave a CPU idle); the parts' kernels then run in their thread alone.
 """
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from __future__ import annotations
 import functools
 import os
 import threading
-from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 T = TypeVar("T")
@@ -21,7 +22,7 @@ T = TypeVar("T")
 #: hand-off costs more than they save.
 PARALLEL_MIN_PX = 1 << 16
 
-#: `.background` is set on a worker thread while it runs an in_background task.
+#: `.background` is set on a worker thread while it runs a `shared` job's parts.
 _thread = threading.local()
 
 
@@ -29,7 +30,7 @@ def run_in_bands(rows: Callable[[int, int], object], height: int, width: int) ->
     """Call rows(y0, y1) over [0, height): in the caller's thread for an image under PARALLEL_MIN_PX pixels
     (or one CPU), else one band of rows per CPU, the first in the caller's thread and the others on the
     pool's, waiting for all of them. An
-    exception in a band is raised here. In an in_background task, always in its thread: a worker waiting for
+    exception in a band is raised here. In a `shared` job's part, always in its thread: a worker waiting for
     bands queued behind it on its own pool could wait forever."""
     bands = workers() if height * width >= PARALLEL_MIN_PX and not getattr(_thread, "background", False) else 1
     if bands == 1:
@@ -44,17 +45,30 @@ def run_in_bands(rows: Callable[[int, int], object], height: int, width: int) ->
             band.result()
 
 
-def in_background(task: Callable[[], T], pixels: int) -> Future[T]:
-    """Start task(), the work of `pixels` pixels, on a worker thread; its result (or exception) comes from the
-    Future's result(). Under PARALLEL_MIN_PX pixels it runs here and now: the hand-off would cost more."""
-    if pixels >= PARALLEL_MIN_PX:
-        return _pool(os.getpid()).submit(_as_background, task)
-    done: Future[T] = Future()
+def shared(parts: Sequence[Callable[[], object]], task: Callable[[], T], pixels: int) -> T:
+    """task() in the caller's thread while a worker thread runs `parts` (the work of `pixels` pixels) one
+    after another; once task() returns, the caller takes the parts not yet started, then waits for the
+    worker's last. So the two CPUs finish together whichever side is longer. Returns task()'s result; an
+    exception in a part is raised here. Under PARALLEL_MIN_PX pixels (or on one CPU) all runs here.
+    """
+    queue = deque(parts)
+
+    def run_parts() -> None:
+        while queue:
+            try:
+                part = queue.popleft()
+            except IndexError:                                 # the other thread took the last one
+                return
+            part()
+    helper = (_pool(os.getpid()).submit(_as_background, run_parts)
+              if pixels >= PARALLEL_MIN_PX and workers() > 1 and len(queue) > 1 else None)
     try:
-        done.set_result(task())
-    except Exception as exc:
-        done.set_exception(exc)
-    return done
+        result = task()
+        run_parts()
+    finally:
+        if helper is not None:
+            helper.result()
+    return result
 
 
 def _as_background(task: Callable[[], T]) -> T:

@@ -5,7 +5,7 @@ import threading
 import pytest
 
 from rig.core import bands
-from rig.core.bands import PARALLEL_MIN_PX, in_background, run_in_bands
+from rig.core.bands import PARALLEL_MIN_PX, run_in_bands
 
 
 def covered(height, width):
@@ -43,21 +43,36 @@ def test_an_exception_in_a_band_is_raised_to_the_caller(monkeypatch):
         run_in_bands(rows, PARALLEL_MIN_PX, 1)
 
 
-def test_a_background_task_runs_on_a_worker_and_its_bands_in_that_thread():
-    """A worker waiting on bands queued behind it on its own pool could wait forever: inside a background
-    task run_in_bands keeps to the task's thread."""
-    here = threading.current_thread().name
-    task = in_background(lambda: (threading.current_thread().name, covered(PARALLEL_MIN_PX, 2)), PARALLEL_MIN_PX)
-    worker, (calls, threads) = task.result(timeout=30)
-    assert worker != here and calls == [(0, PARALLEL_MIN_PX)] and threads == {worker}
+def test_a_shared_job_runs_every_part_once_and_the_parts_bands_in_their_thread():
+    """A worker waiting on bands queued behind it on its own pool could wait forever: inside a part on a
+    worker, run_in_bands keeps to the part's thread. The caller takes parts too once its own task is done."""
+    done, threads, here = [], set(), threading.current_thread().name
+
+    def part(k):
+        calls, band_threads = covered(PARALLEL_MIN_PX, 2)
+        if threading.current_thread().name != here:
+            assert calls == [(0, PARALLEL_MIN_PX)] and band_threads == {threading.current_thread().name}
+        done.append(k)
+        threads.add(threading.current_thread().name)
+        if threading.current_thread().name != here:
+            on_worker.set()
+    on_worker = threading.Event()
+
+    def task():                                   # until the worker has a part (with more than one CPU)
+        assert bands.workers() == 1 or on_worker.wait(timeout=60)
+        return "task"
+    assert bands.shared([lambda k=k: part(k) for k in range(6)], task, PARALLEL_MIN_PX) == "task"
+    assert sorted(done) == list(range(6)) and (bands.workers() == 1 or threads - {here})
 
 
-def test_a_small_background_task_runs_at_once_and_keeps_its_exception():
+def test_a_small_shared_job_runs_in_the_callers_thread_and_raises_what_a_part_raises():
     here = threading.current_thread().name
-    assert in_background(lambda: threading.current_thread().name, 10).result() == here
+    seen = []
+    bands.shared([lambda: seen.append(threading.current_thread().name)] * 2, lambda: None, 10)
+    assert seen == [here, here]
 
     def fails():
-        raise RuntimeError("task")
+        raise RuntimeError("part")
     for pixels in (10, PARALLEL_MIN_PX):
-        with pytest.raises(RuntimeError, match="task"):
-            in_background(fails, pixels).result(timeout=30)
+        with pytest.raises(RuntimeError, match="part"):
+            bands.shared([fails, fails], lambda: None, pixels)
