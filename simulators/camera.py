@@ -73,7 +73,8 @@ def lit_view(optics: CameraOptics, a_rad: float, b_rad: float, box: Window, fram
     if _view_kernel is not None:
         lit = np.empty((box.height, box.width), bool)
         xy, wo = np.empty((lit.size, 2)), np.empty((lit.size, 3))
-        n = _view_kernel.lit_rays(rows, cols, height, origin[0], origin[2], radius_m ** 2, *start, lit, xy, wo)
+        n = _view_kernel.lit_rays(rows, cols, height, origin[0], origin[2], radius_m ** 2, start[0], start[1],
+                                  lit, xy, wo)
         return lit, xy[:n], wo[:n]
     along = [np.add.outer(r, c) for r, c in zip(rows, cols)]            # (height, width) each
     with np.errstate(divide="ignore"):
