@@ -90,7 +90,7 @@ class DarkFrameCache:
         self.clock = clock
         self.n_taken = 0                  # dark frames taken so far
         self.exposed_s = 0.0              # their summed exposure time
-        self._darks: dict[tuple[float, Window], tuple[float, list[np.ndarray]]] = {}
+        self._darks: dict[tuple[float, Window], tuple[float, FrameStack]] = {}
 
     def snap(self, exposure_s: float, sensor: SensorInfo) -> float:
         """Nearest exposure time (s) on the ladder, clamped to the sensor's range.
@@ -115,16 +115,16 @@ class DarkFrameCache:
             raise ValueError("dark frames can only age on a clock: give the DarkFrameCache the rig clock")
         now = self.clock.now() if self.clock else 0.0
         key = (exposure_s, window)
-        taken_s, stack = self._darks.get(key, (now, []))
+        taken_s, stack = self._darks.get(key, (now, FrameStack()))
         if max_age_s is not None and now - taken_s > max_age_s:
-            taken_s, stack = now, []
+            taken_s, stack = now, FrameStack()
         while len(stack) < max(self.frames_per_dark, frames):
             frame = camera.capture_dark(exposure_s, window)
             stack.append(_pixels(camera, frame, window))
             self.n_taken += 1
             self.exposed_s += frame.exposure_s
         self._darks[key] = (taken_s, stack)
-        return np.stack(stack)
+        return stack.array()
 
     def invalidate(self) -> None:
         """Forget all darks, so that the next points take fresh ones."""
@@ -134,24 +134,47 @@ class DarkFrameCache:
         return len(self._darks)
 
 
+class FrameStack:
+    """Frames of one exposure, added one by one and read as one (n, H, W) array. The array is stacked once
+    per count and shared by every reader (so read-only): a point reads its stacks several times, and a
+    full frame's copy costs about as much as its merge."""
+
+    def __init__(self) -> None:
+        self._frames: list[np.ndarray] = []
+        self._array: np.ndarray | None = None
+
+    def append(self, frame: np.ndarray) -> None:
+        self._frames.append(frame)
+        self._array = None
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def array(self) -> np.ndarray:
+        if self._array is None:
+            self._array = np.stack(self._frames)
+            self._array.flags.writeable = False
+        return self._array
+
+
 class _Shots:
     """The raw frames of one point by exposure time, each taken only when first needed."""
 
     def __init__(self, camera: LuminanceCamera, window: Window):
         self.camera = camera
         self.window = window
-        self._frames: dict[float, list[np.ndarray]] = {}
+        self._frames: dict[float, FrameStack] = {}
         self._realised: dict[float, list[float]] = {}
 
     def take(self, exposure_s: float, count: int) -> np.ndarray:
         """All frames (≥ count, H, W) at exposure_s, taking only those still missing."""
-        frames = self._frames.setdefault(exposure_s, [])
+        frames = self._frames.setdefault(exposure_s, FrameStack())
         realised = self._realised.setdefault(exposure_s, [])
         while len(frames) < count:
             frame = self.camera.capture(exposure_s, self.window)
             frames.append(_pixels(self.camera, frame, self.window))
             realised.append(frame.exposure_s)
-        return np.stack(frames)
+        return frames.array()
 
     def realised_s(self, exposure_s: float) -> float:
         """Mean exposure time the camera realised for the frames at exposure_s."""
