@@ -380,7 +380,7 @@ def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:
     """cd/m² per DN/s of the pixels of `window` (float64): the camera's coefficient over its flat field (lens
     fall-off and PRNU), (height, width), where `rig calibrate camera` measured one; else the coefficient
     alone, as a 0-d array (it broadcasts)."""
-    if isinstance(sensor, CalibratedSensorInfo) and sensor.flat_field is not None:
+    if isinstance(sensor, CalibratedSensorInfo):
         return sensor.calibration_cd_m2_per_dn_s / sensor.flat_of(window)
     return np.asarray(sensor.calibration_cd_m2_per_dn_s, dtype=float)
 

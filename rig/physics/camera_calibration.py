@@ -263,7 +263,7 @@ class CalibratedSensorInfo(SensorInfo):
     flat_field: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def flat_of(self, window: Window) -> np.ndarray:
-        """The flat field's pixels of a window of the sensor."""
+        """The flat field's pixels of a window of the sensor; without one, 1 as a 0-d array (it broadcasts)."""
         if self.flat_field is None:
-            return np.ones((window.height, window.width))
+            return np.ones(())
         return self.flat_field[Window(0, 0, self.width_px, self.height_px).inner(window)]
