@@ -10,7 +10,8 @@
  * or float64 ('d'), any strides. Per exposure k: the mean frame, the frame to test for saturation (the
  * maximum over a stack; the mean frame itself for one frame) and the mean dark, plus the per-exposure
  * constants 1/t, a, b, c and the saturation threshold. Outputs: float32 rate, var_rate, var_dark, uint8
- * n_used, bool saturated and clipped, (H, W) C-contiguous.
+ * n_used, bool saturated and clipped, (H, W) C-contiguous; all but the rate may be None (a saved image needs
+ * the rate alone, and writing the others would double the memory traffic).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -142,10 +143,29 @@ ALWAYS_INLINE void reweigh(const int n, const int passes, const Py_ssize_t w, co
     }
 }
 
-/* Merge rows [y0, y1); `work` holds (2n + 1)·w floats and (n + 1)·w bytes. */
+/* Row y of output k, or its scratch row when the output is not wanted (None). */
+static void *out_row(const Merge *m, int k, Py_ssize_t y, Py_ssize_t w, void *scratch) {
+    return m->out[k].buf ? (char *)m->out[k].buf + y * w * m->out[k].itemsize : scratch;
+}
+
+/* reweigh for a single exposure, whose weight cancels: X̂ = r at every pass, so var = 1/w = (max(r, 0) + b)/a
+ * and var_dark = c exactly; the passes would give the same to float32 rounding, with five divisions a pixel. */
+static void single(const Py_ssize_t w, const float *rate, const float *scale, const float b, const float c,
+                   float *out_rate, float *out_var, float *out_dark) {
+    for (Py_ssize_t x = 0; x < w; x++) {
+        float signal = rate[x] > 0.0f ? rate[x] : 0.0f;
+        out_rate[x] = rate[x];
+        out_var[x] = (signal + b) / scale[x];
+        out_dark[x] = c;
+    }
+}
+
+/* Merge rows [y0, y1); `work` holds (2n + 3)·w floats and (n + 4)·w bytes (the last 2·w floats and 3·w bytes
+ * are scratch rows for the outputs not wanted). */
 static void merge_rows(const Merge *m, Py_ssize_t y0, Py_ssize_t y1, Py_ssize_t w, float *work, unsigned char *flags) {
     const int n = m->n;
-    float *rate = work, *scale = work + n * w, *tmp = work + 2 * n * w;
+    float *rate = work, *scale = work + n * w, *tmp = work + 2 * n * w, *spare = work + (2 * n + 1) * w;
+    unsigned char *spare_flags = flags + (n + 1) * w;
     float b[MAX_EXPOSURES], c[MAX_EXPOSURES];
     unsigned char *sat = flags, *clipped = flags + n * w;
     Py_ssize_t x, y;
@@ -170,17 +190,17 @@ static void merge_rows(const Merge *m, Py_ssize_t y0, Py_ssize_t y1, Py_ssize_t 
             for (x = 0; x < w; x++) sc[x] = a * (float)(1 - (s[x] & (unsigned char)(1 - (clipped[x] & keep))));
         }
         {
-            float *out_rate = (float *)((char *)m->out[0].buf + y * w * 4);
-            float *out_var = (float *)((char *)m->out[1].buf + y * w * 4);
-            float *out_dark = (float *)((char *)m->out[2].buf + y * w * 4);
-            unsigned char *out_n = (unsigned char *)m->out[3].buf + y * w;
-            unsigned char *out_sat = (unsigned char *)m->out[4].buf + y * w;
-            unsigned char *out_clip = (unsigned char *)m->out[5].buf + y * w;
+            float *out_rate = out_row(m, 0, y, w, NULL);
+            float *out_var = out_row(m, 1, y, w, spare);
+            float *out_dark = out_row(m, 2, y, w, spare + w);
+            unsigned char *out_n = out_row(m, 3, y, w, spare_flags);
+            unsigned char *out_sat = out_row(m, 4, y, w, spare_flags + w);
+            unsigned char *out_clip = out_row(m, 5, y, w, spare_flags + 2 * w);
             const unsigned char *longest = sat + m->longest * w;
             /* constant counts (rig's 2 passes, up to 4 exposures): the loops over exposures and passes unroll
              * and the loop over pixels vectorises */
-            switch (m->passes == 2 ? n : 0) {
-            case 1: reweigh(1, 2, w, rate, scale, b, c, out_rate, out_var, out_dark); break;
+            switch (n == 1 ? 1 : m->passes == 2 ? n : 0) {
+            case 1: single(w, rate, scale, b[0], c[0], out_rate, out_var, out_dark); break;
             case 2: reweigh(2, 2, w, rate, scale, b, c, out_rate, out_var, out_dark); break;
             case 3: reweigh(3, 2, w, rate, scale, b, c, out_rate, out_var, out_dark); break;
             case 4: reweigh(4, 2, w, rate, scale, b, c, out_rate, out_var, out_dark); break;
@@ -202,7 +222,8 @@ static void merge_rows(const Merge *m, Py_ssize_t y0, Py_ssize_t y1, Py_ssize_t 
 static void merge_release(Merge *m) {
     int k;
     for (k = 0; k < m->n; k++) { frame_close(&m->mean[k]); frame_close(&m->peak[k]); frame_close(&m->dark[k]); }
-    for (k = 0; k < m->out_held; k++) PyBuffer_Release(&m->out[k]);
+    for (k = 0; k < m->out_held; k++)
+        if (m->out[k].buf) PyBuffer_Release(&m->out[k]);
     m->out_held = 0;
 }
 
@@ -253,6 +274,12 @@ static PyObject *py_merge_rows(PyObject *self, PyObject *args) {
     for (int k = 0; k < 6; k++) {
         PyObject *o = PySequence_GetItem(outputs, k);
         if (!o) { merge_release(&m); return NULL; }
+        if (o == Py_None && k > 0) {            /* not wanted: its rows go to scratch (merge_rows) */
+            Py_DECREF(o);
+            m.out[k].buf = NULL;
+            m.out_held = k + 1;
+            continue;
+        }
         int got = PyObject_GetBuffer(o, &m.out[k], PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE | PyBUF_FORMAT);
         Py_DECREF(o);
         if (got < 0) { merge_release(&m); return NULL; }
@@ -290,8 +317,8 @@ static PyObject *py_merge_rows(PyObject *self, PyObject *args) {
         merge_release(&m);
         return NULL;
     }
-    float *work = malloc(sizeof(float) * (size_t)(2 * n + 1) * (size_t)(w > 0 ? w : 1));
-    unsigned char *flags = malloc((size_t)(n + 1) * (size_t)(w > 0 ? w : 1));
+    float *work = malloc(sizeof(float) * (size_t)(2 * n + 3) * (size_t)(w > 0 ? w : 1));
+    unsigned char *flags = malloc((size_t)(n + 4) * (size_t)(w > 0 ? w : 1));
     if (!work || !flags) {
         free(work); free(flags);
         merge_release(&m);
@@ -308,7 +335,8 @@ static PyObject *py_merge_rows(PyObject *self, PyObject *args) {
 static PyMethodDef METHODS[] = {
     {"merge_rows", py_merge_rows, METH_VARARGS,
      "merge_rows(means, peaks, darks, thresholds, inv_t, a, b, c, shortest, longest, passes, outputs, y0, y1)\n"
-     "Merge rows [y0, y1) of the exposures into the six outputs (see rig.physics.hdr). Releases the GIL."},
+     "Merge rows [y0, y1) of the exposures into the six outputs (see rig.physics.hdr); all but the rate may be\n"
+     "None (not wanted). Releases the GIL."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_merge_kernel",

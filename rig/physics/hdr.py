@@ -154,11 +154,56 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     bₖ = (K D + ρ² + nₖδₖ)/(K tₖ), two operations per pixel. The compiled kernel
     runs every pass on a pixel in registers, a row at a time, with the GIL released
     (`_merge_compiled`); the numpy fallback merges BLOCK_PX pixels at a time, every
-    pass on a block while it is in the cache. Both work in float32: frame sums of
+    pass on a block while it is in the cache. With a single exposure (a metered ROI's
+    usual point) the weight cancels and X̂ = r at every pass: the kernel writes r and
+    var = (max(r, 0) + b)/a without passes. Both work in float32: frame sums of
     integer DN are exact in float32, and the rounding of a mean (2⁻²⁴ relative,
     < 3·10⁻⁴ DN) is a thousandth of the quantisation noise (0.29 DN). The outputs
     are float32 too.
     """
+    plan = _plan(raw_dn, dark_dn, exposures_s, sensor, margin_rel)
+    height, width = plan.frames[0].shape[1:]
+    out = HdrMerge(rate_dn_s=np.empty((height, width), np.float32), var_rate=np.empty((height, width), np.float32),
+                   var_dark=np.empty((height, width), np.float32), n_used=np.empty((height, width), np.uint8),
+                   saturated=np.empty((height, width), bool), clipped=np.empty((height, width), bool))
+    if _merge_kernel is not None:
+        _merge_compiled(plan, [out.rate_dn_s, out.var_rate, out.var_dark, out.n_used, out.saturated, out.clipped])
+        return out
+    rows = max(1, BLOCK_PX // max(width, 1))
+    for y0 in range(0, height, rows):
+        block = slice(y0, y0 + rows)
+        _merge_block([f[:, block] for f in plan.frames], [d[:, block] for d in plan.darks], plan, out, block)
+    return out
+
+
+def merged_rate(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray], exposures_s: Sequence[float],
+                sensor: SensorInfo, margin_rel: float = SATURATION_MARGIN_REL) -> np.ndarray:
+    """`merge_exposures`' rate alone, (H, W) float32: what a saved image needs. The compiled kernel then
+    writes nothing else (the variances and flags would double its memory traffic); the numpy fallback
+    merges in full."""
+    if _merge_kernel is None:
+        return merge_exposures(raw_dn, dark_dn, exposures_s, sensor, margin_rel).rate_dn_s
+    plan = _plan(raw_dn, dark_dn, exposures_s, sensor, margin_rel)
+    rate = np.empty(plan.frames[0].shape[1:], np.float32)
+    _merge_compiled(plan, [rate, None, None, None, None, None])
+    return rate
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A merge's checked inputs and per-exposure constants (merge_exposures' Notes)."""
+
+    frames: list[np.ndarray]            # (nₖ, H, W) per exposure
+    darks: list[np.ndarray]             # (mₖ, H, W) per exposure
+    consts: list[dict[str, float]]      # 1/tₖ ("inv_t"), aₖ, bₖ, cₖ
+    threshold_dn: float                 # saturation threshold
+    thresholds: list[float]             # the same, to compare each exposure's frames with (_threshold_for)
+    shortest: int
+    longest: int
+
+
+def _plan(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray], exposures_s: Sequence[float],
+          sensor: SensorInfo, margin_rel: float) -> _Plan:
     t, frames, darks = _checked(raw_dn, dark_dn, exposures_s)
     if not sensor.gain_dn_per_e > 0:
         raise ValueError(f"the sensor's gain must be positive, got {sensor.gain_dn_per_e} DN/e⁻")
@@ -171,41 +216,28 @@ def merge_exposures(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray],
     delta = floor_var / m                                               # δₖ
     per_exposure = {
         "inv_t": 1.0 / t, "a": n * t / k_gain, "b": (floor_var + n * delta) / (k_gain * t), "c": delta / t ** 2}
-    consts = [{key: float(v[k]) for key, v in per_exposure.items()} for k in range(t.size)]
-    thresholds = [_threshold_for(f.dtype, saturation_threshold_dn(sensor, margin_rel)) for f in frames]
-    height, width = frames[0].shape[1:]
-    out = HdrMerge(rate_dn_s=np.empty((height, width), np.float32), var_rate=np.empty((height, width), np.float32),
-                   var_dark=np.empty((height, width), np.float32), n_used=np.empty((height, width), np.uint8),
-                   saturated=np.empty((height, width), bool), clipped=np.empty((height, width), bool))
-    if _merge_kernel is not None:
-        _merge_compiled(frames, darks, consts, saturation_threshold_dn(sensor, margin_rel), int(np.argmin(t)),
-                        int(np.argmax(t)), out)
-        return out
-    rows = max(1, BLOCK_PX // max(width, 1))
-    for y0 in range(0, height, rows):
-        block = slice(y0, y0 + rows)
-        _merge_block([f[:, block] for f in frames], [d[:, block] for d in darks], thresholds, consts,
-                     int(np.argmin(t)), int(np.argmax(t)), out, block)
-    return out
+    threshold_dn = saturation_threshold_dn(sensor, margin_rel)
+    return _Plan(frames, darks, [{key: float(v[k]) for key, v in per_exposure.items()} for k in range(t.size)],
+                 threshold_dn, [_threshold_for(f.dtype, threshold_dn) for f in frames], int(np.argmin(t)),
+                 int(np.argmax(t)))
 
 
-def _merge_compiled(frames: list[np.ndarray], darks: list[np.ndarray], consts: list[dict[str, float]],
-                    threshold_dn: float, shortest: int, longest: int, out: HdrMerge) -> None:
-    """merge_exposures' pass over the pixels by the compiled kernel (_merge_kernel.c): one band of rows per
-    CPU for a full frame (rig.core.bands). The kernel
-    reads uint16, float32 and float64 frames; others are converted to float32 first."""
+def _merge_compiled(plan: _Plan, outputs: list[np.ndarray | None]) -> None:
+    """merge_exposures' pass over the pixels by the compiled kernel (_merge_kernel.c) into `outputs` (HdrMerge's
+    arrays in its order; None: not wanted, all but the rate): one band of rows per CPU for a full frame
+    (rig.core.bands). The kernel reads uint16, float32 and float64 frames; others are converted to float32 first."""
     def readable(frame: np.ndarray) -> np.ndarray:
         return frame if frame.dtype.isnative and frame.dtype in _KERNEL_DTYPES else frame.astype(np.float32)
-    peaks = [readable(f[0] if len(f) == 1 else f.max(axis=0)) for f in frames]
+    peaks = [readable(f[0] if len(f) == 1 else f.max(axis=0)) for f in plan.frames]
     def column(key: str) -> list[float]:
-        return [c[key] for c in consts]
+        return [c[key] for c in plan.consts]
     merge_rows = functools.partial(
-        _merge_kernel.merge_rows, [readable(_mean_dn(f)) for f in frames], peaks,
-        [readable(_mean_dn(d)) for d in darks],
-        [_threshold_for(p.dtype, threshold_dn) for p in peaks], column("inv_t"), column("a"), column("b"), column("c"),
-        shortest, longest, REWEIGHT_PASSES, [out.rate_dn_s, out.var_rate, out.var_dark, out.n_used, out.saturated,
-                                            out.clipped])
-    run_in_bands(merge_rows, *out.rate_dn_s.shape)
+        _merge_kernel.merge_rows, [readable(_mean_dn(f)) for f in plan.frames], peaks,
+        [readable(_mean_dn(d)) for d in plan.darks], [_threshold_for(p.dtype, plan.threshold_dn) for p in peaks],
+        column("inv_t"), column("a"), column("b"), column("c"), plan.shortest, plan.longest, REWEIGHT_PASSES, outputs)
+    rate = outputs[0]
+    assert rate is not None, "the rate is always merged"
+    run_in_bands(merge_rows, *rate.shape)
 
 
 def _threshold_for(dtype: np.dtype, threshold_dn: float) -> float:
@@ -223,30 +255,29 @@ def _mean_dn(stack: np.ndarray) -> np.ndarray:
     return mean
 
 
-def _merge_block(frames: list[np.ndarray], darks: list[np.ndarray], thresholds: list[float],
-                 consts: list[dict[str, float]], shortest: int, longest: int, out: HdrMerge,
+def _merge_block(frames: list[np.ndarray], darks: list[np.ndarray], plan: _Plan, out: HdrMerge,
                  block: slice) -> None:
     """merge_exposures on a block of rows, written into out[block] (see merge_exposures' Notes).
 
     Fewest passes over the block: an exposure without saturated pixels in the block keeps its
     scalar aₖ, the first exposure of a sum writes the sum, and max(X̂, 0) compares with an array
     (numpy's maximum with a scalar is 5× slower)."""
-    saturated = [(f[0] if len(f) == 1 else f.max(axis=0)) >= thr for f, thr in zip(frames, thresholds)]
+    saturated = [(f[0] if len(f) == 1 else f.max(axis=0)) >= thr for f, thr in zip(frames, plan.thresholds)]
     clipped = functools.reduce(np.logical_and, saturated)
     rates: list[np.ndarray] = []
     scales: list[float | np.ndarray] = []                   # aₖ where usable, else 0
-    for k, (f, d, c) in enumerate(zip(frames, darks, consts)):
+    for k, (f, d, c) in enumerate(zip(frames, darks, plan.consts)):
         rate = np.subtract(_mean_dn(f), _mean_dn(d), dtype=np.float32)
         rate *= c["inv_t"]
         rates.append(rate)
-        unusable = saturated[k] & ~clipped if k == shortest else saturated[k]   # clipped: the shortest's rate
+        unusable = saturated[k] & ~clipped if k == plan.shortest else saturated[k]   # clipped: the shortest's rate
         scales.append(np.multiply(~unusable, c["a"], dtype=np.float32) if unusable.any() else c["a"])
     zero = np.zeros_like(rates[0])
     weight, weight_sum, weighted, dark_part = (np.empty_like(zero) for _ in range(4))
     merged = out.rate_dn_s[block]
     for p in range(1 + REWEIGHT_PASSES):
         signal = np.maximum(merged, zero, out=weighted) if p else None      # max(X̂, 0) of the previous pass
-        for k, (rate, a, c) in enumerate(zip(rates, scales, consts)):
+        for k, (rate, a, c) in enumerate(zip(rates, scales, plan.consts)):
             w = weight_sum if k == 0 else weight
             if signal is None:
                 np.multiply(a, 1.0 / c["b"], out=w)
@@ -269,7 +300,7 @@ def _merge_block(frames: list[np.ndarray], darks: list[np.ndarray], thresholds: 
     dark_part *= var_rate
     np.multiply(dark_part, var_rate, out=out.var_dark[block])
     np.subtract(len(saturated), functools.reduce(np.add, (s.view(np.uint8) for s in saturated)), out=out.n_used[block])
-    out.saturated[block] = saturated[longest]
+    out.saturated[block] = saturated[plan.longest]
     out.clipped[block] = clipped
 
 

@@ -14,7 +14,7 @@ import pytest
 from rig.core.bands import PARALLEL_MIN_PX
 from rig.core.values import SensorInfo
 from rig.physics import hdr
-from rig.physics.hdr import merge_exposures, merge_exposures_reference, saturation_threshold_dn
+from rig.physics.hdr import merge_exposures, merge_exposures_reference, merged_rate, saturation_threshold_dn
 
 SENSOR = SensorInfo(width_px=300, height_px=200, bit_depth=12, gain_dn_per_e=0.25, read_noise_e=8.0,
                     black_level_dn=64.0, calibration_cd_m2_per_dn_s=1.0)
@@ -165,3 +165,17 @@ def test_more_exposures_than_the_kernel_specialises_for_merge_like_the_reference
     raw, darks = scene(rng, (40, 50), times)
     ref = assert_same_merge(raw, darks, times)
     assert ref.saturated.any() and (ref.n_used == len(times)).any()
+
+
+@pytest.mark.parametrize("shape", [(40, 50), (PARALLEL_MIN_PX // 200 + 7, 201)], ids=["small", "in-bands"])
+def test_the_rate_alone_is_the_full_merges_rate(shape):
+    """merged_rate (a saved image's merge: the kernel writes no variances or flags) gives merge_exposures' rate,
+    bit for bit, with saturated and clipped pixels in the frame."""
+    rng = np.random.default_rng(20)
+    times = [0.001, 0.004, 0.016]
+    raw, darks = scene(rng, shape, times, n_frames=2)
+    full = merge_exposures(raw, darks, times, SENSOR)
+    assert full.clipped.any() and full.saturated.any()
+    rate = merged_rate(raw, darks, times, SENSOR)
+    assert rate.dtype == np.float32
+    np.testing.assert_array_equal(rate, full.rate_dn_s)
