@@ -131,6 +131,7 @@ SPLIT = ((SimCamera, "_render_scene", "simulated scene (rays, BRDF, texture)"),
          (SensorModel, "read", "simulated sensor (noise, digitising)"),
          ("rig.acquisition.attenuation", "reduce_point", "reduction (merge, ROI, flat field)"),
          ("rig.acquisition.capture", "merge_exposures", "  of which the merge"),
+         ("rig.acquisition.capture", "merged_rate", "  of which the merge"),
          ("rig.data.dataset", "write_luminance_exr", "EXR files written"))
 
 
@@ -193,7 +194,7 @@ def campaign_figures(runs: int) -> None:
           f"target ≤ {IMAGES_TARGET_RATIO:.0f}×{'' if ratio <= IMAGES_TARGET_RATIO else '  (missed)'}")
     per_point = 1e3 / max(n_images, 1)
     print(f"  where it goes, ms per point, without → with images (extra {(with_images - without) * per_point:.0f}):")
-    for _, _, label in SPLIT:
+    for label in dict.fromkeys(label for _, _, label in SPLIT):
         print(f"    {label:<40s} {split_without[label] * per_point:7.1f} → {split_with[label] * per_point:7.1f}")
 
 

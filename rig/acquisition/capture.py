@@ -31,7 +31,8 @@ Exposure times lie on a 1/6-stop ladder so that dark frames are reused from
 point to point. Only the ROI is merged unless `full_frame` (images are saved);
 the camera reads only a window around the ROI, or, if it cannot, the frame it
 returns is cropped. With `full_frame` the metering probes still read only that
-window; the exposures kept are read whole.
+window; the exposures kept are read whole, and merged whole for the saved image
+only: the point's numbers come from the ROI's merge either way.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ from rig.core.errors import DeviceError
 from rig.core.values import Frame, PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import CalibratedLuminanceCamera, LuminanceCamera
 from rig.physics.camera_calibration import CalibratedSensorInfo
-from rig.physics.hdr import HdrMerge, merge_exposures, saturation_threshold_dn
+from rig.physics.hdr import HdrMerge, merge_exposures, merged_rate, saturation_threshold_dn
 from rig.physics.roi import mean_noise, point_flags, roi_statistics
 
 #: Metering frames taken at most before the metered exposure is accepted.
@@ -151,8 +152,8 @@ class FrameStack:
         return len(self._frames)
 
     def array(self) -> np.ndarray:
-        if self._array is None:
-            self._array = np.stack(self._frames)
+        if self._array is None:         # one frame, the usual count, is its own stack: a view, not a copy
+            self._array = self._frames[0][np.newaxis] if len(self._frames) == 1 else np.stack(self._frames)
             self._array.flags.writeable = False
         return self._array
 
@@ -225,9 +226,12 @@ def _adaptive_exposures(shots: _Shots, metered_s: float, in_roi: tuple[slice, ..
            and len(exposures) < settings.max_exposures and exposures[-1] > sensor.min_exposure_s):
         shorter = max(exposures[-1] * 2.0 ** -settings.bracket_stops, sensor.min_exposure_s)
         exposures.append(darks.snap(shorter, sensor))
+
+    def saturated_everywhere(stack: np.ndarray) -> bool:
+        """Every pixel of the merged region saturated in a frame; the ROI, inside it, is looked at first."""
+        return all(bool(np.all(np.any(stack[part] >= threshold, axis=0))) for part in (in_roi, region))
     # An exposure saturated everywhere in the merged region adds nothing; keep at least the shortest.
-    return [e for e in exposures if not np.all(np.any(shots.take(e, 1)[region] >= threshold, axis=0))] \
-        or [exposures[-1]]
+    return [e for e in exposures if not saturated_everywhere(shots.take(e, 1))] or [exposures[-1]]
 
 
 def fixed_bracket(centre_s: float, settings: CaptureSettings, darks: DarkFrameCache,
@@ -335,7 +339,8 @@ def acquire_point(camera: LuminanceCamera, settings: CaptureSettings,
 
 
 def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
-    """Merge (the whole frame when images are saved), ROI statistics and flags; no camera I/O.
+    """ROI statistics and flags from the ROI's merge, and the whole window merged when images are saved
+    (`merged_image`); no camera I/O. The ROI's numbers do not depend on whether images are saved.
 
     The luminance is the value at the ROI centre: the ROI mean corrected for a resolved lobe's curvature
     (rig.physics.footprint), whose uncertainty adds to u_luminance.
@@ -344,24 +349,18 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
     divided out of the merged rate, pixel by pixel, before its coefficient applies."""
     if isinstance(acq, CalibratedAcquisition):
         return reduce_calibrated(acq)
-    sensor, settings = acq.sensor, acq.settings
-    if settings.full_frame:
-        merged = merge_exposures(acq.frames, acq.darks, acq.exposures_s, sensor)
-        in_merged = acq.window.inner(acq.roi)
-    else:
-        merged, in_merged = acq.roi_merge, (slice(None), slice(None))
-    var_dark = mean_noise(merged.var_dark[in_merged]) ** 2
+    sensor, settings, merged = acq.sensor, acq.settings, acq.roi_merge
+    var_dark = mean_noise(merged.var_dark) ** 2
     cal = calibration_of(sensor, acq.roi)                            # cd/m² per DN/s, per pixel of the ROI
-    stats = roi_statistics(merged.rate_dn_s[in_merged] * cal, merged.var_rate[in_merged] * cal ** 2)
+    stats = roi_statistics(merged.rate_dn_s * cal, merged.var_rate * cal ** 2)
     return PointCapture(
         luminance_cd_m2=stats.mean,
         u_luminance_cd_m2=stats.u_luminance(sensor.calibration_u_rel),
         roi_std_cd_m2=stats.std,
         exposures_s=acq.exposures_s,
-        saturated_fraction=float(np.mean(merged.saturated[in_merged])),
-        flags=point_flags(stats, settings.min_snr, bool(np.any(merged.clipped[in_merged]))),
-        image_cd_m2=(np.multiply(merged.rate_dn_s, calibration_of(sensor, acq.window), dtype=np.float32)
-                     if settings.full_frame else None),
+        saturated_fraction=float(np.mean(merged.saturated)),
+        flags=point_flags(stats, settings.min_snr, bool(np.any(merged.clipped))),
+        image_cd_m2=merged_image(acq) if settings.full_frame else None,
         roi_window=acq.roi,
         n_frames=acq.n_frames,
         u_noise_cd_m2=stats.u_mean_noise,
@@ -374,6 +373,13 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
         capture_time_s=acq.capture_time_s,
         n_darks=acq.n_darks,
     )
+
+
+def merged_image(acq: Acquisition) -> np.ndarray:
+    """The whole window merged, in cd/m² (float32): the image saved with a point."""
+    image = merged_rate(acq.frames, acq.darks, acq.exposures_s, acq.sensor)
+    image *= calibration_of(acq.sensor, acq.window)
+    return image
 
 
 def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:

@@ -66,7 +66,7 @@ class SensorInfo:
 class Frame:
     """One raw exposure (or a dark frame taken with the shutter closed)."""
 
-    pixels_dn: np.ndarray          # uint16, shape (height, width) of `window`
+    pixels_dn: np.ndarray          # uint16, shape (height, width) of `window`; the caller's (not a driver's buffer)
     exposure_s: float              # exposure time actually realised
     window: Window
     dark: bool = False

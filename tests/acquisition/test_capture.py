@@ -6,7 +6,14 @@ from hypothesis import given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
 
-from rig.acquisition.capture import DarkFrameCache, capture_point, fixed_bracket, frames_for_snr
+from rig.acquisition.capture import (
+    DarkFrameCache,
+    acquire_point,
+    capture_point,
+    fixed_bracket,
+    frames_for_snr,
+    reduce_point,
+)
 from rig.config.capture import CaptureSettings
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -192,6 +199,18 @@ def test_frame_averaging_and_full_frame():
     assert capture.n_frames == len(camera.light_calls)
     rows, cols = camera.full_window().inner(capture.roi_window)
     assert capture.luminance_cd_m2 == pytest.approx(capture.image_cd_m2[rows, cols].mean())
+
+
+def test_a_points_numbers_do_not_depend_on_whether_its_image_is_saved():
+    """The ROI's numbers come from the ROI's merge; the whole-frame merge feeds the saved image only."""
+    camera = FakeCamera(flat(1.0e5))
+    acq = acquire_point(camera, dataclasses.replace(SETTINGS, full_frame=True), DarkFrameCache())
+    with_image = reduce_point(acq)
+    without = reduce_point(dataclasses.replace(acq, settings=dataclasses.replace(acq.settings, full_frame=False)))
+    assert with_image.image_cd_m2 is not None and without.image_cd_m2 is None
+    for field in (f for f in dataclasses.fields(without) if f.name != "image_cd_m2"):
+        a, b = getattr(with_image, field.name), getattr(without, field.name)
+        assert a == (pytest.approx(b, rel=1e-12) if isinstance(b, float) else b), field.name
 
 
 def test_window_margin_grows_the_read_window_only():
