@@ -4,7 +4,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from rig.data.images import read_luminance_exr, write_luminance_exr
+from rig.data.images import EXR_BLOCK_BYTES, read_luminance_exr, write_luminance_exr
 
 METADATA = {"point_id": "03-017", "theta_i_deg": 60.000000123, "phi_i_deg": 0.0, "exposures_s": [0.002, 0.008],
             "roi_window": [660, 485, 70, 70]}
@@ -17,6 +17,15 @@ def test_pixels_and_metadata_come_back_exactly(tmp_path):
     pixels, metadata = read_luminance_exr(tmp_path / "a.exr")
     np.testing.assert_array_equal(pixels, image)
     assert metadata == METADATA
+
+
+def test_an_image_written_in_several_blocks_of_rows_comes_back_exactly(tmp_path):
+    """Rows wide enough that a write carries a few of them (EXR_BLOCK_BYTES), the last block a shorter one."""
+    width = EXR_BLOCK_BYTES // (6 * 4)
+    rows_per_block = EXR_BLOCK_BYTES // (8 + 4 * width)
+    image = np.random.default_rng(2).random((3 * rows_per_block + 2, width), dtype=np.float32)
+    write_luminance_exr(tmp_path / "a.exr", image, METADATA)
+    np.testing.assert_array_equal(read_luminance_exr(tmp_path / "a.exr")[0], image)
 
 
 def test_the_header_is_a_single_channel_uncompressed_float_scanline_image(tmp_path):
