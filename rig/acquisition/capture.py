@@ -378,8 +378,8 @@ def reduce_point(acq: Acquisition | CalibratedAcquisition) -> PointCapture:
 def merged_image(acq: Acquisition) -> np.ndarray:
     """The whole window merged, in cd/m² (float32): the image saved with a point."""
     image = merged_rate(acq.frames, acq.darks, acq.exposures_s, acq.sensor)
-    image *= calibration_of(acq.sensor, acq.window)
-    return image
+    # in float32: `image *=` a float64 calibration would go through a float64 copy of the frame
+    return np.multiply(image, calibration_of(acq.sensor, acq.window), out=image, dtype=np.float32)
 
 
 def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:
