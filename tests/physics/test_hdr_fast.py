@@ -59,10 +59,11 @@ def assert_same_merge(raw, darks, times):
 @pytest.mark.parametrize("shape", [(70, 70), (200, 300)], ids=["roi", "frame-like"])
 @pytest.mark.parametrize("times, n_frames, n_darks", [
     ([0.011], 1, 1),                              # the usual point: one exposure
+    ([0.02], 3, 2),                               # one exposure, frames and darks averaged
     ([0.001, 0.004, 0.016], 1, 1),                # a bracket, some pixels saturated in the longest
     ([0.002, 0.02, 0.2], 3, 2),                   # frame averaging, darks averaged too
     ([0.05, 0.01, 0.2], 2, 4),                    # shortest exposure not first
-], ids=["single", "bracket", "averaged", "unordered"])
+], ids=["single", "single-averaged", "bracket", "averaged", "unordered"])
 def test_fast_merge_equals_the_reference(shape, times, n_frames, n_darks):
     rng = np.random.default_rng(sum(shape) + len(times) + n_frames)
     raw, darks = scene(rng, shape, times, n_frames, n_darks)
