@@ -204,6 +204,7 @@ class _Plan:
 
 def _plan(raw_dn: Sequence[np.ndarray], dark_dn: Sequence[np.ndarray], exposures_s: Sequence[float],
           sensor: SensorInfo, margin_rel: float) -> _Plan:
+    """A merge's inputs checked, and its per-exposure constants (merge_exposures' Notes)."""
     t, frames, darks = _checked(raw_dn, dark_dn, exposures_s)
     if not sensor.gain_dn_per_e > 0:
         raise ValueError(f"the sensor's gain must be positive, got {sensor.gain_dn_per_e} DN/e⁻")
