@@ -67,8 +67,16 @@ def _plane_curve(model: Model, wi: np.ndarray, t: np.ndarray) -> tuple[np.ndarra
     return signed, model(wi, wo)
 
 
+def _stated(u: np.ndarray) -> np.ndarray:
+    """Where a point has a u: an import without one (ALTA without `#VS`) leaves u_brdf_per_sr empty (NaN)."""
+    return np.isfinite(u) & (u > 0)
+
+
 def _measured_label(u: np.ndarray) -> str:
-    return "measured ± u" if np.any(u > 0) else "measured (no uncertainty given)"
+    stated = _stated(u)
+    if not stated.any():
+        return "measured (u not stated)"
+    return "measured ± u" if stated.all() else "measured ± u (where stated)"
 
 
 def _draw_polar(ax, signed, f, u, curve, theta_i) -> None:
@@ -76,11 +84,15 @@ def _draw_polar(ax, signed, f, u, curve, theta_i) -> None:
     ax.set_theta_direction(-1)          # positive (lamp side) to the right, as in the Cartesian panel
     ax.set_thetamin(-90)
     ax.set_thetamax(90)
-    r_max = 1.1 * max(np.max(f + u, initial=0.0), np.max(curve[1]) if curve else 0.0) or 1.0
+    # a point without u reaches f; its error bar (NaN) is not drawn
+    r_max = 1.1 * max(np.max(f + np.where(_stated(u), u, 0.0), initial=0.0),
+                      np.max(curve[1]) if curve else 0.0) or 1.0
     ax.set_ylim(0, r_max)
     if curve:
         ax.plot(np.radians(curve[0]), curve[1], color=FITTED, lw=1.6, label="fit")
-    ax.errorbar(np.radians(signed), f, yerr=u, fmt="o", ms=3, color=MEASURED, ecolor="0.5", label=_measured_label(u))
+    bars = _stated(u)
+    ax.errorbar(np.radians(signed[bars]), f[bars], yerr=u[bars], fmt="none", ecolor="0.5")
+    ax.plot(np.radians(signed), f, "o", ms=3, color=MEASURED, label=_measured_label(u))
     ax.annotate("", xy=(np.radians(theta_i), r_max), xytext=(0, 0),
                 arrowprops={"arrowstyle": "-|>", "color": LAMP, "lw": 2, "alpha": 0.8})
     ax.plot([], [], color=LAMP, lw=2, label="incident direction (lamp)")
@@ -98,7 +110,8 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
     ax.axvline(-theta_i, color=SPECULAR_TEXT, ls=":", lw=1.2, label="mirror direction")
     if curve:
         ax.plot(curve[0], curve[1], color=FITTED, lw=1.6, label="fit")
-    ax.errorbar(signed, f, yerr=u, fmt="none", ecolor="0.5", capsize=2)
+    bars = _stated(u)
+    ax.errorbar(signed[bars], f[bars], yerr=u[bars], fmt="none", ecolor="0.5", capsize=2)
     dots = ax.scatter(signed, f, c=off, cmap="viridis", vmin=0, vmax=tol_deg, s=18, zorder=3,
                       edgecolors="k", linewidths=0.3, label=_measured_label(u))
     ax.figure.colorbar(dots, ax=ax, pad=0.01, label="distance of ωo from the plane [deg]")

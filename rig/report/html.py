@@ -117,7 +117,8 @@ def _section(ident: str, title: str, body: str, first: bool = False) -> str:
 def _header(c: ReportContent) -> str:
     facts = [(str(c.counts.measured), "points measured"), (str(len(c.series)), "incidence series"),
              (str(c.counts.skipped), "planned points skipped"),
-             (percent(c.median_u_rel, 2), "median relative u(f_r), k = 1")]
+             ("u not stated" if c.median_u_rel is None else percent(c.median_u_rel, 2),
+              "median relative u(f_r), k = 1")]
     cards = "".join(f'<div class="fact"><b>{_e(v)}</b><span>{_e(k)}</span></div>' for v, k in facts)
     return (f'<header><div class="kicker">BRDF measurement report</div><h1>{_e(c.sample_id)}</h1>'
             f"<p>Campaign <b>{_e(c.campaign_name)}</b> on rig <b>{_e(c.rig_name)}</b>"
