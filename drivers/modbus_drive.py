@@ -7,10 +7,12 @@ operation. A move is one FC 16 write of the map's move block (which starts it);
 `wait` sleeps the predicted move time and confirms it with one FC 3 status read;
 the position read-back is another FC 3. No function code 23: many drives lack it.
 
-No reply, a dropped link or a garbled frame is transient (retried after a
-reconnect, reported as an event); a Modbus exception reply or a drive alarm is
-not. The client comes from `open_client` (`modbus_client` by default), so a
-test can replay a scripted exchange of exact PDUs in memory.
+No reply, a dropped link, a garbled frame, or a gateway's exception 0Ah/0Bh
+(path unavailable, target did not respond: the gateway's word for the same
+silence on its RS-485 side) is transient (retried after a reconnect, reported
+as an event); any other exception reply or a drive alarm is not. The client
+comes from `open_client` (`modbus_client` by default), so a test can replay a
+scripted exchange of exact PDUs in memory.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ from urllib.parse import parse_qs
 
 from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
-from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
 from pymodbus.pdu import ModbusPDU
 
@@ -69,11 +70,12 @@ def modbus_client(url: str, timeout_s: float) -> ModbusClient:
     raise ValueError(f"{url!r}: expected modbus-tcp://host:port or modbus-rtu://<port>?baudrate=N")
 
 
-def _exception_name(code: int) -> str:
-    try:
-        return ExcCodes(code).name.lower().replace("_", " ")
-    except ValueError:
-        return "unknown exception"
+#: Exception codes of the Modbus application protocol (V1.1b3, 7), as our messages name them.
+EXCEPTIONS = {1: "illegal function", 2: "illegal data address", 3: "illegal data value", 4: "server device failure",
+              5: "acknowledge", 6: "server device busy", 8: "memory parity error", 0x0A: "gateway path unavailable",
+              0x0B: "gateway target device failed to respond"}
+#: What a gateway answers when nothing answered it on the bus: retried like a timeout.
+GATEWAY_SILENCE = (0x0A, 0x0B)
 
 
 class ModbusDriveLink(RetryingDevice):
@@ -139,8 +141,10 @@ class ModbusDriveLink(RetryingDevice):
             except (ModbusException, OSError) as exc:
                 raise DeviceError(device, f"{where}: no valid reply: {exc}", transient=True) from None
             if reply.isError():
-                raise DeviceError(device, f"{where} answered Modbus exception {reply.exception_code} "
-                                          f"({_exception_name(reply.exception_code)})")
+                code = reply.exception_code
+                raise DeviceError(device, f"{where} answered Modbus exception 0x{code:02X} "
+                                          f"({EXCEPTIONS.get(code, 'not a standard exception code')})",
+                                  transient=code in GATEWAY_SILENCE)
             if count and len(reply.registers) != count:
                 raise DeviceError(device, f"{where}: {len(reply.registers)} registers in the reply, "
                                           f"expected {count}", transient=True)

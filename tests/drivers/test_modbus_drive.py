@@ -183,5 +183,45 @@ def test_exception_reply_is_persistent_and_names_drive_register_and_code(expecte
         with pytest.raises(DeviceError) as err:
             axis.position_deg()
     assert str(err.value) == ("arm_azimuth: Oriental Motor AZ series drive (Modbus id 1 at modbus-rtu:///dev/ttyUSB0): "
-                              "read feedback position at register 0x00CC answered Modbus exception 2 (illegal address)")
+                              "read feedback position at register 0x00CC answered Modbus exception 0x02 "
+                              "(illegal data address)")
     assert not err.value.transient
+
+
+@pytest.mark.parametrize("code, name", [(0x0A, "gateway path unavailable"),
+                                        (0x0B, "gateway target device failed to respond")])
+def test_a_gateways_exception_is_retried_like_a_timeout(expected_protocol, clock, events, code, name):
+    """Behind a Modbus/TCP gateway, a drive that did not answer on the RS-485 side comes back as exception
+    0Ah/0Bh: the same silence as an RTU timeout, retried after a reconnect, the event naming the exception."""
+    request = pdu(POSITION_READ[0])
+    with expected_protocol([(request, bytes([0x83, code])), (request, pdu(POSITION_READ[1]))]) as replay:
+        link, axis = replayed(replay, clock)
+        link.events = lambda kind, **fields: events.append((kind, fields))
+        assert axis.position_deg() == pytest.approx(1000.0)
+    assert [kind for kind, _ in events] == ["retry", "reconnect"]
+    assert events[0][1]["error"].endswith(f"register 0x00CC answered Modbus exception 0x{code:02X} ({name})")
+
+
+def test_a_gateway_that_keeps_answering_0B_ends_in_one_message(expected_protocol, clock):
+    request = pdu(POSITION_READ[0])
+    with expected_protocol([(request, h("83 0B"))] * 3) as replay:
+        _, axis = replayed(replay, clock)
+        with pytest.raises(DeviceError) as err:
+            axis.position_deg()
+    assert str(err.value) == ("arm_azimuth: read feedback position failed 3 times; last: arm_azimuth: Oriental Motor "
+                              "AZ series drive (Modbus id 1 at modbus-rtu:///dev/ttyUSB0): read feedback position at "
+                              "register 0x00CC answered Modbus exception 0x0B (gateway target device failed to "
+                              "respond)")
+    assert not err.value.transient
+
+
+@pytest.mark.parametrize("code, name", [(0x01, "illegal function"), (0x03, "illegal data value"),
+                                        (0x04, "server device failure"), (0x06, "server device busy"),
+                                        (0x0C, "not a standard exception code")])
+def test_any_other_exception_is_one_persistent_error(expected_protocol, clock, events, code, name):
+    with expected_protocol([(pdu(POSITION_READ[0]), bytes([0x83, code]))]) as replay:
+        link, axis = replayed(replay, clock)
+        link.events = lambda kind, **fields: events.append((kind, fields))
+        with pytest.raises(DeviceError, match=rf"0x00CC answered Modbus exception 0x{code:02X} \({name}\)$") as err:
+            axis.position_deg()
+    assert not err.value.transient and events == []
