@@ -94,6 +94,8 @@ STOP = Query("stop", _ack)
 MOVE_ABS = Query("move abs {}", _ack, "µstep")
 POSITION = Query("get pos", int, "µstep")
 CYCLE = Query("get limit.cycle.dist", int, "µstep")
+MAXSPEED = Query("get maxspeed", int, "1/1.6384 µstep/s")
+ACCEL = Query("get accel", int, "10000/1.6384 µstep/s²")
 SET_MAXSPEED = Query("set maxspeed {}", _ack, "1/1.6384 µstep/s")
 SET_ACCEL = Query("set accel {}", _ack, "10000/1.6384 µstep/s²")
 WARNINGS = Query("warnings", _flags)
@@ -217,8 +219,9 @@ class ZaberAxis(Axis):
 
     def __init__(self, controller: ZaberChain, device: int, number: int, name: str, speed_deg_s: float,
                  accel_deg_s2: float, settle_s: float, microsteps_per_degree: float | None = None):
-        """Reads the microstep size, sets speed and acceleration (RAM and flash alike: the device keeps them), reads
-        the warnings (homed or not)."""
+        """Reads the microstep size; reads speed and acceleration and sets those that differ from the rig file's
+        (a `set` writes the device's flash as well as its RAM, so an unchanged value is not written again);
+        reads the warnings (homed or not)."""
         self.controller = controller
         self.device = device
         self.number = number
@@ -232,8 +235,10 @@ class ZaberAxis(Axis):
         self.accel_deg_s2 = self.accel_data / ACCEL_DATA / self.microsteps_per_degree
         # Flags are not judged here: a stall latched before we connected must leave an axis to clear it with;
         # the first move's reply carries it.
-        for setting, value in ((SET_MAXSPEED, self.speed_data), (SET_ACCEL, self.accel_data)):
-            self.controller.request(self.name, self.device, self.number, setting, value)
+        for current, setting, value in ((MAXSPEED, SET_MAXSPEED, self.speed_data),
+                                        (ACCEL, SET_ACCEL, self.accel_data)):
+            if self.controller.request(self.name, self.device, self.number, current).value != value:
+                self.controller.request(self.name, self.device, self.number, setting, value)
         self.homed = not NOT_HOMED & set(self.warnings())
         self._commanded_deg: float | None = None      # where the last command leaves the axis, if known
         self._done_at = 0.0                           # rig time at which that command should be settled

@@ -6,11 +6,17 @@ which pyserial opens like any serial port), and answers each received line
 from one server thread. Subclasses say what the instrument answers
 (`respond`); injected reply faults spoil those answers the same way for
 every peer. The servers never sleep: rig time passes only on the world's clock.
+
+A received line is bounded: one longer than the peer's `MAX_LINE` is dropped as
+it arrives (memory stays bounded whatever a client sends, and the cost is linear
+in the bytes received) and answered at its terminator by `overlong`, the
+instrument's own error behaviour (the default: no reply, the line is discarded).
 """
 
 from __future__ import annotations
 
 import os
+import re
 import select
 import selectors
 import socket
@@ -24,8 +30,11 @@ from rig.simulators.faults import PeerFaults
 
 _QUICKACK = getattr(socket, "TCP_QUICKACK", None)       # Linux only
 
-#: `respond(line)`: the bytes to send back for one received line (terminator stripped); None sends nothing.
-Responder = Callable[[bytes], bytes | None]
+#: The bytes to send back for one received line (terminator stripped), or for None (a line too long);
+#: None sends nothing.
+Responder = Callable[[bytes | None], bytes | None]
+#: A fresh splitter for one connection (each keeps its own unfinished line).
+Splitters = Callable[[], "LineSplitter"]
 
 
 class HangUp(Exception):
@@ -43,6 +52,50 @@ def peer_gone(conn: socket.socket) -> bool:
         return True
 
 
+class LineSplitter:
+    """Cuts a byte stream into lines, holding at most `max_line` bytes of an unfinished one.
+
+    `terminator`: each of its bytes ends a line. `b"\\n"`: LF, a CR before it dropped (CRLF taken too);
+    `b"\\r"`: CR only; `b"\\r\\n"`: CR and/or LF in any combination, empty lines ignored (a device whose
+    manual says so). A line longer than `max_line` is dropped while it arrives and reported as None at
+    its terminator, so the instrument answers it where it would have answered the line."""
+
+    def __init__(self, terminator: bytes, max_line: int):
+        if terminator not in (b"\n", b"\r", b"\r\n"):
+            raise ValueError(f"a line ends in LF, CR, or CR and/or LF, not {terminator!r}")
+        self._ends = re.compile(b"[" + terminator + b"]")
+        self._strip_cr = terminator == b"\n"
+        self._skip_empty = terminator == b"\r\n"
+        self._max = max_line
+        self._held = bytearray()
+        self._dropping = False            # inside a line already too long: its bytes are not kept
+
+    def feed(self, data: bytes) -> list[bytes | None]:
+        """The lines `data` completes (terminator stripped), None for each one too long."""
+        lines: list[bytes | None] = []
+        start = 0
+        for end in self._ends.finditer(data):
+            piece = data[start:end.start()]
+            start = end.end()
+            if self._dropping or len(self._held) + len(piece) > self._max:
+                lines.append(None)
+            else:
+                line = bytes(self._held + piece)
+                if self._strip_cr:
+                    line = line.rstrip(b"\r")
+                if line or not self._skip_empty:
+                    lines.append(line)
+            self._held.clear()
+            self._dropping = False
+        rest = data[start:]
+        if self._dropping or len(self._held) + len(rest) > self._max:
+            self._held.clear()
+            self._dropping = True
+        else:
+            self._held += rest
+        return lines
+
+
 class _TcpServer:
     """One thread serves the listener and every connection (clients may reconnect at will).
 
@@ -50,8 +103,9 @@ class _TcpServer:
     a second one is closed at once, unless the held one turns out closed by its client (a driver
     that reconnects closes its old socket first; the server may not have seen that EOF yet)."""
 
-    def __init__(self, respond: Responder, name: str, exclusive: bool = False):
+    def __init__(self, respond: Responder, splitter: Splitters, name: str, exclusive: bool = False):
         self._respond = respond
+        self._splitter = splitter
         self._exclusive = exclusive
         self._listener = socket.create_server(("127.0.0.1", 0))
         self._wake = socket.socketpair()
@@ -69,7 +123,7 @@ class _TcpServer:
         sel = selectors.DefaultSelector()
         sel.register(self._listener, selectors.EVENT_READ)
         sel.register(self._wake[0], selectors.EVENT_READ)
-        pending: dict[Any, bytes] = {}
+        pending: dict[Any, LineSplitter] = {}
         try:
             while True:
                 for key, _ in sel.select():
@@ -86,7 +140,7 @@ class _TcpServer:
                             continue
                         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                         sel.register(conn, selectors.EVENT_READ)
-                        pending[conn] = b""
+                        pending[conn] = self._splitter()
                     elif not self._receive(sock, pending):
                         sel.unregister(sock)
                         del pending[sock]
@@ -97,7 +151,7 @@ class _TcpServer:
             sel.close()
 
     @staticmethod
-    def _free(sel: selectors.BaseSelector, pending: dict[Any, bytes]) -> bool:
+    def _free(sel: selectors.BaseSelector, pending: dict[Any, Any]) -> bool:
         """Drop held connections whose client has gone; whether none is left."""
         for conn in [c for c in pending if peer_gone(c)]:
             sel.unregister(conn)
@@ -105,7 +159,7 @@ class _TcpServer:
             conn.close()
         return not pending
 
-    def _receive(self, conn: socket.socket, pending: dict[Any, bytes]) -> bool:
+    def _receive(self, conn: socket.socket, pending: dict[Any, LineSplitter]) -> bool:
         """Answer the complete lines received; False when the connection is over."""
         try:
             data = conn.recv(4096)
@@ -117,10 +171,9 @@ class _TcpServer:
         # otherwise wait out Nagle + delayed ACK (~40 ms); Linux clears this flag after each use.
         if _QUICKACK is not None:
             conn.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
-        *lines, pending[conn] = (pending[conn] + data).split(b"\n")
         try:
-            for line in lines:
-                reply = self._respond(line.rstrip(b"\r"))
+            for line in pending[conn].feed(data):
+                reply = self._respond(line)
                 if reply is not None:
                     conn.sendall(reply)
         except (HangUp, OSError):
@@ -133,9 +186,9 @@ class _PtyServer:
     never sees EIO between driver (re)connections. A pty has no modem lines: RTS/DTR ioctls fail
     on it, so the driver must not touch them."""
 
-    def __init__(self, respond: Responder, name: str, terminator: bytes = b"\n"):
+    def __init__(self, respond: Responder, splitter: Splitters, name: str):
         self._respond = respond
-        self._terminator = terminator
+        self._splitter = splitter
         self._master, self._slave = os.openpty()
         tty.setraw(self._master)
         self._wake_r, self._wake_w = os.pipe()
@@ -150,14 +203,12 @@ class _PtyServer:
             os.close(fd)
 
     def _serve(self) -> None:
-        pending = b""
+        lines = self._splitter()
         while True:
             ready, _, _ = select.select([self._master, self._wake_r], [], [])
             if self._wake_r in ready:
                 return
-            pending += os.read(self._master, 4096)
-            *lines, pending = pending.split(self._terminator)
-            for line in lines:
+            for line in lines.feed(os.read(self._master, 4096)):
                 reply = self._respond(line)
                 if reply is not None:
                     os.write(self._master, reply)
@@ -173,11 +224,16 @@ class LinePeer:
     FAULTS: PeerFaults
     #: The part of a reply the `short` fault lets through (no terminator).
     SHORT_FRACTION = 0.5
+    #: The longest line (bytes, terminator excluded) the instrument takes; a subclass lowers it to its manual's.
+    #: The default bounds what a client can make the peer hold: no simulated instrument takes a longer line.
+    MAX_LINE = 4096
 
     def __init__(self, medium: Literal["tcp", "pty"], *, exclusive: bool = False, terminator: bytes = b"\n"):
         """`exclusive` (TCP; read at `start`): refuse a second client while one is connected, so that two
         programs never interleave exchanges. A pty needs no flag: the driver opens it with an exclusive lock.
-        `terminator` (pty): what ends a received line (a CR for an instrument that takes CR-terminated lines)."""
+        `terminator`: what ends a received line, as the instrument's manual says (`LineSplitter`): LF (a CR
+        before it dropped), CR (`b"\\r"`), or CR and/or LF (`b"\\r\\n"`)."""
+        LineSplitter(terminator, self.MAX_LINE)                 # refuse a framing it cannot split at once
         self.medium = medium
         self.exclusive = exclusive
         self.terminator = terminator
@@ -190,6 +246,16 @@ class LinePeer:
         """Bytes to send back for one received line (terminator stripped); None sends nothing."""
         raise NotImplementedError
 
+    def overlong(self) -> bytes | None:
+        """The answer to a line longer than `MAX_LINE`, at its terminator; the default discards it unanswered."""
+        return None
+
+    def _answer(self, line: bytes | None) -> bytes | None:
+        return self.overlong() if line is None else self.respond(line)
+
+    def _splitter(self) -> LineSplitter:
+        return LineSplitter(self.terminator, self.MAX_LINE)
+
     # -- lifecycle ----------------------------------------------------------------------------
     @property
     def path(self) -> str | None:
@@ -201,8 +267,8 @@ class LinePeer:
         if self._server is not None:
             raise RuntimeError(f"{type(self).__name__} already started on {self.url}")
         name = type(self).__name__
-        self._server = (_TcpServer(self.respond, name, self.exclusive) if self.medium == "tcp"
-                        else _PtyServer(self.respond, name, self.terminator))
+        self._server = (_TcpServer(self._answer, self._splitter, name, self.exclusive) if self.medium == "tcp"
+                        else _PtyServer(self._answer, self._splitter, name))
         self.url = self._server.address
         return self.url
 

@@ -21,18 +21,22 @@ from rig.drivers.retry import RetryPolicy
 from rig.drivers.zaber import FLAGS, ZaberAxis, ZaberChain, lrc
 
 PER_DEG = 1536000 / 360
-#: Axis 1 of device 1 at power-up: 1 536 000 µsteps per turn, 15 °/s → 104858, 30 °/s² → 21, no reference.
+#: Axis 1 of device 1 at power-up: 1 536 000 µsteps per turn, no reference, and another speed and acceleration
+#: than the rig file's (15 °/s → 104858, 30 °/s² → 21): the driver reads them, then sets them.
 CONNECT_UNHOMED = [
     (b"/1 1 get limit.cycle.dist:BF\n", b"@01 1 OK IDLE WR 1536000\r\n"),
+    (b"/1 1 get maxspeed:A7\n", b"@01 1 OK IDLE WR 153600\r\n"),
     (b"/1 1 set maxspeed 104858:41\n", b"@01 1 OK IDLE WR 0\r\n"),
+    (b"/1 1 get accel:06\n", b"@01 1 OK IDLE WR 205\r\n"),
     (b"/1 1 set accel 21:77\n", b"@01 1 OK IDLE WR 0\r\n"),
     (b"/1 1 warnings:F5\n", b"@01 1 OK IDLE WR 01 WR:43\r\n"),
 ]
-#: The same axis once homed (replies with their checksums, as a device with checksums on sends them).
+#: The same axis once homed, its speed and acceleration already the rig file's: nothing is written to its flash
+#: (replies with their checksums, as a device with checksums on sends them).
 CONNECT = [
     (b"/1 1 get limit.cycle.dist:BF\n", b"@01 1 OK IDLE -- 1536000:5D\r\n"),
-    (b"/1 1 set maxspeed 104858:41\n", b"@01 1 OK IDLE -- 0:8C\r\n"),
-    (b"/1 1 set accel 21:77\n", b"@01 1 OK IDLE -- 0:8C\r\n"),
+    (b"/1 1 get maxspeed:A7\n", b"@01 1 OK IDLE -- 104858:82\r\n"),
+    (b"/1 1 get accel:06\n", b"@01 1 OK IDLE -- 21:59\r\n"),
     (b"/1 1 warnings:F5\n", b"@01 1 OK IDLE -- 00:5C\r\n"),
 ]
 GET_POS = b"/1 1 get pos:AC\n"
@@ -81,12 +85,26 @@ def test_checksums_match_the_published_examples():
     assert line("1", "/") == b"/1:CF\n"
 
 
-def test_connect_reads_the_microstep_size_and_sets_speed_and_acceleration(expected_protocol, clock, events):
+def test_connect_reads_the_microstep_size_and_leaves_speed_and_acceleration_that_match(expected_protocol, clock,
+                                                                                      events):
+    """`set maxspeed`/`set accel` write the device's flash: a device that already has the rig file's values
+    is only read."""
     with expected_protocol(CONNECT) as replay:
         ax = axis(replay.open_port, clock, events)
     assert ax.microsteps_per_degree == PER_DEG and ax.homed
     assert ax.speed_deg_s == pytest.approx(15.0, rel=1e-5) and ax.accel_deg_s2 == pytest.approx(30.0, rel=0.01)
     assert ax.identity() == "Zaber device 1 axis 1 on /dev/ttyUSB0" and events == []
+
+
+@pytest.mark.parametrize("differs", ["maxspeed", "accel"])
+def test_connect_sets_only_the_speed_or_acceleration_that_differs(expected_protocol, clock, events, differs):
+    """The power-up script (CONNECT_UNHOMED) sets both; here one of them already matches."""
+    read, other, write = {"maxspeed": (1, b"@01 1 OK IDLE -- 104857\r\n", b"/1 1 set maxspeed 104858:41\n"),
+                          "accel": (2, b"@01 1 OK IDLE -- 22\r\n", b"/1 1 set accel 21:77\n")}[differs]
+    script = [*CONNECT[:read], (CONNECT[read][0], other), (write, IDLE), *CONNECT[read + 1:]]
+    with expected_protocol(script) as replay:
+        axis(replay.open_port, clock, events)
+    assert [request for request, _ in replay.written].count(write) == 1
 
 
 def test_move_sleeps_the_predicted_time_polls_idle_and_reads_the_position(expected_protocol, clock, events):
@@ -250,7 +268,8 @@ def test_a_lasting_silence_is_a_persistent_unanswered_error(expected_protocol, c
 
 def test_without_cycle_distance_the_configured_microstep_size_is_used(expected_protocol, clock, events):
     refused = (CONNECT[0][0], b"@01 1 RJ IDLE -- BADCOMMAND\r\n")
-    with expected_protocol([refused, (b"/1 1 set maxspeed 2458:A8\n", IDLE), (b"/1 1 set accel 1:A9\n", IDLE),
+    with expected_protocol([refused, (CONNECT[1][0], b"@01 1 OK IDLE -- 2458\r\n"),
+                            (CONNECT[2][0], b"@01 1 OK IDLE -- 2\r\n"), (b"/1 1 set accel 1:A9\n", IDLE),
                             (WARNINGS, NO_WARNINGS)]) as replay:
         ax = axis(replay.open_port, clock, events, microsteps_per_degree=100.0)
     assert ax.microsteps_per_degree == 100.0
@@ -261,7 +280,8 @@ def test_without_cycle_distance_the_configured_microstep_size_is_used(expected_p
 
 def test_requests_without_checksum(expected_protocol, clock, events):
     with expected_protocol([(b"/1 1 get limit.cycle.dist\n", b"@01 1 OK IDLE -- 3600\r\n"),
-                            (b"/1 1 set maxspeed 246\n", IDLE), (b"/1 1 set accel 1\n", IDLE),
+                            (b"/1 1 get maxspeed\n", b"@01 1 OK IDLE -- 100\r\n"), (b"/1 1 set maxspeed 246\n", IDLE),
+                            (b"/1 1 get accel\n", b"@01 1 OK IDLE -- 1\r\n"),
                             (b"/1 1 warnings\n", NO_WARNINGS)]) as replay:
         c = chain(replay.open_port, clock, events)
         c.checksum = False
@@ -270,7 +290,8 @@ def test_requests_without_checksum(expected_protocol, clock, events):
 
 def test_from_rig_addresses_two_devices_and_homes_the_unreferenced(expected_protocol, clock, events):
     second = [(b"/2 1 get limit.cycle.dist:BE\n", b"@02 1 OK IDLE -- 1536000\r\n"),
-              (b"/2 1 set maxspeed 104858:40\n", b"@02 1 OK IDLE -- 0\r\n"),
+              (b"/2 1 get maxspeed:A6\n", b"@02 1 OK IDLE -- 104858\r\n"),
+              (b"/2 1 get accel:05\n", b"@02 1 OK IDLE -- 30\r\n"),
               (b"/2 1 set accel 21:76\n", b"@02 1 OK IDLE -- 0\r\n"),
               (b"/2 1 warnings:F4\n", b"@02 1 OK IDLE -- 00\r\n")]
     homing = [(b"/1 1 home:B5\n", BUSY), (POLL, IDLE)]
@@ -286,7 +307,8 @@ def test_from_rig_addresses_two_devices_and_homes_the_unreferenced(expected_prot
 def test_a_flag_latched_before_connecting_is_raised_by_the_first_move_and_can_be_cleared(expected_protocol, clock,
                                                                                          events):
     stalled = b"@01 1 OK IDLE FS 0\r\n"
-    script = [(CONNECT[0][0], b"@01 1 OK IDLE FS 1536000\r\n"), (CONNECT[1][0], stalled), (CONNECT[2][0], stalled),
+    script = [(CONNECT[0][0], b"@01 1 OK IDLE FS 1536000\r\n"), (CONNECT[1][0], b"@01 1 OK IDLE FS 104858\r\n"),
+              (CONNECT[2][0], b"@01 1 OK IDLE FS 21\r\n"),
               (WARNINGS, b"@01 1 OK IDLE FS 01 FS\r\n"), (GET_POS, stalled),
               (b"/1 1 warnings clear:CE\n", b"@01 1 OK IDLE FS 01 FS\r\n"), (GET_POS, IDLE), (MOVE_30, BUSY)]
     with expected_protocol(script) as replay:
