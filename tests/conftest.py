@@ -1,5 +1,6 @@
-"""Shared fixtures: the repository's paths (everything the tests read lies inside it) and the dataset of one
-run of the reduced end-to-end campaign, which the CLI, export and plot tests read but never change."""
+"""Shared fixtures: the repository's paths (everything the tests read lies inside it), the dataset of one
+run of the reduced end-to-end campaign, which the CLI, export and plot tests read but never change, and one
+run of the paper campaign with its closed-form truth."""
 
 from pathlib import Path
 
@@ -69,3 +70,23 @@ def e2e_report(e2e_run: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
                  "--road", str(tmp / "road.json")]) == 0
     return {"html": (tmp / "report.html").read_text(encoding="utf-8"), "dir": tmp, "hostile": HOSTILE_SAMPLE,
             "fit": json.loads((tmp / "fit.json").read_text()), "road": json.loads((tmp / "road.json").read_text())}
+
+
+@pytest.fixture(scope="session")
+def paper_run(tmp_path_factory: pytest.TempPathFactory):
+    """The paper campaign (campaigns/spieringhs2023-rm1.yaml: Tables 1 and 2, RetroPhong RM1) measured once on the
+    simulated rig: its dataset and its simulated truth as a function of (ωi, ωo) arrays; read-only."""
+    from rig.acquisition.execute import execute
+    from rig.config.campaign import load_campaign
+    from rig.config.rigfile import simulated_rig
+    from rig.physics.brdf_models import get_model
+    from rig.planning.plan import build_plan
+    from rig.session.connect import open_campaign_rig
+
+    campaign, rig = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml"), simulated_rig()
+    out = tmp_path_factory.mktemp("paper") / "ds"
+    assert execute(campaign, None, rig, build_plan(campaign, rig), out,
+                   open_campaign_rig(campaign, rig)).status == "complete"
+    truth = campaign.sample.simulated_brdf
+    model = get_model(truth.model)
+    return load(out), lambda wi, wo: model(wi, wo, truth.params)

@@ -8,16 +8,15 @@ batches spread over 16 incidences gave a p95 error 3× that of whole patterns at
 
 For every unmeasured candidate the dataset's interpolant (rig.analysis.predict.InterpolatingPredictor, the same
 predictor `rig predict` and the validation metric use) gives its relative uncertainty u/(f + τ) (τ as in
-rig.analysis.validation), with the bend in θi that linear interpolation between incidences leaves out
-(`theta_curvature_u`) added in quadrature, and at least `EXTRAPOLATED_U_REL` outside the measured θi range. The
-gain of a view is that squared (the variance it removes, in the log-relative units of the error metric), times
-the span of θi its incidence stands for (`represented_width_deg`: a new incidence in a wide gap serves more
-directions than one between close neighbours); the incidence's batch is its views of largest gain, each taken
-view damping the gain of candidates within `SPREAD_RADIUS` of it in the projected disk. The batch chosen is the
-one of largest gain per second of rig time: the moves from where the axes stand through the batch in travel
-order (rig.planning.ordering), a capture per point and an E⊥ reading per batch. This is the "uncertainty per
-cost" criterion the planning literature suggests (Vávra & Filip 2017 adapt 1-D slices by their error; none of
-the prior work prices the instrument's travel).
+rig.analysis.validation), its error between incidences included, and at least `EXTRAPOLATED_U_REL` outside the
+measured θi range. The gain of a view is that squared (the variance it removes, in the log-relative units of the
+error metric), times the span of θi its incidence stands for (`represented_width_deg`: a new incidence in a wide gap
+serves more directions than one between close neighbours); the incidence's batch is its views of largest gain, each
+taken view damping the gain of candidates within `SPREAD_RADIUS` of it in the projected disk. The batch chosen is
+the one of largest gain per second of rig time: the moves from where the axes stand through the batch in travel
+order (rig.planning.ordering), a capture per point and an E⊥ reading per batch. This is the "uncertainty per cost"
+criterion the planning literature suggests (Vávra & Filip 2017 adapt 1-D slices by their error; none of the prior
+work prices the instrument's travel).
 
 Gains and scores are compared in bins of `SCORE_BIN_LOG2` (a factor of 2^0.25), ties going to the lower series
 and view: a point measured again after a resume differs from its first measurement by its noise, and that
@@ -32,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.analysis.predict import InterpolatingPredictor, MeasuredDomain, lobe_aligned, measured_domain
+from rig.analysis.predict import InterpolatingPredictor, measured_domain
 from rig.analysis.validation import TAU_REL
 from rig.config.rigfile import AxesConfig
 from rig.config.zones import ForbiddenZone
@@ -81,53 +80,18 @@ def rows_dataset(rows: Sequence[Mapping[str, object]], planned: Mapping[str, Pla
                    flags=flags, time_utc=[str(r.get("time_utc", "")) for r in rows], skipped=[], header=())
 
 
-def theta_curvature_u(domain: MeasuredDomain, theta_i_deg: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """How far the interpolant's straight line in θi between the two bracketing incidences may be off: |quadratic −
-    linear| in ln f, the quadratic through the brackets and the next incidence beyond either (the larger of the
-    two), all evaluated at the lobe-aligned view as the interpolant does. Zero at a measured incidence, and where
-    fewer than three incidences are measured. The interpolant's own between-incidence term, min(w, 1 − w)·|Δ ln f|,
-    is blind to a change both brackets agree on (the diffuse floor rising towards grazing views at another rate
-    than the lobes' tails fall, say); the bend over three incidences is what linear interpolation leaves out."""
-    out = np.zeros(len(theta_i_deg))
-    t = domain.theta_i_deg
-    if len(t) < 3:
-        return out
-    lo, hi, w, _ = domain.brackets(theta_i_deg)
-    between = (w > 0) & (w < 1)
-    for a, b in sorted(set(zip(lo[between].tolist(), hi[between].tolist()))):
-        rows = between & (lo == a) & (hi == b)
-        x, v = theta_i_deg[rows], xy[rows]
-        fa, fb = _log_f_at(domain, a, x, v), _log_f_at(domain, b, x, v)
-        linear = (1 - w[rows]) * fa + w[rows] * fb
-        for c in (a - 1, b + 1):
-            if 0 <= c < len(t):
-                ta, tb, tc = t[a], t[b], t[c]
-                quadratic = (fa * (x - tb) * (x - tc) / ((ta - tb) * (ta - tc))
-                             + fb * (x - ta) * (x - tc) / ((tb - ta) * (tb - tc))
-                             + _log_f_at(domain, c, x, v) * (x - ta) * (x - tb) / ((tc - ta) * (tc - tb)))
-                out[rows] = np.maximum(out[rows], np.abs(quadratic - linear))
-    return out
-
-
-def _log_f_at(domain: MeasuredDomain, k: int, theta_i_deg: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """ln f of measured incidence k at the views xy of incidences theta_i_deg, lobe-aligned (as the interpolant)."""
-    inc = domain.incidences[k]
-    return inc.evaluate(lobe_aligned(xy, theta_i_deg, inc.theta_i_deg))[0]
-
-
 def candidate_u_rel(rows: Sequence[Mapping[str, object]], points: Sequence[PlannedPoint],
                     planned: Mapping[str, PlannedPoint],
                     loo_cache: dict[bytes, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Each candidate's u/(f + τ): the interpolant's u (its measurements and leave-one-out error) ⊕ the bend in θi
-    (`theta_curvature_u`), at least EXTRAPOLATED_U_REL outside the measured θi range; and the measured incidences."""
+    """Each candidate's u/(f + τ): the interpolant's u (its measurements, the interpolation error within and
+    between incidences), at least EXTRAPOLATED_U_REL outside the measured θi range; and the measured incidences."""
     ds = rows_dataset(rows, planned)
     domain = measured_domain(ds, loo_cache=loo_cache)
     a = np.array([(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg) for p in points], float).reshape(-1, 4)
     pred = InterpolatingPredictor(domain).predict(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
     f = ds["brdf_per_sr"]
     tau = TAU_REL * float(np.median(f[np.isfinite(f)]))
-    bend = theta_curvature_u(domain, a[:, 0], geo.disk_coordinates(a[:, 2], a[:, 3], a[:, 1]))
-    u_rel = np.hypot(pred.u_brdf_per_sr, bend * pred.brdf_per_sr) / (pred.brdf_per_sr + tau)
+    u_rel = pred.u_brdf_per_sr / (pred.brdf_per_sr + tau)
     within = domain.brackets(a[:, 0])[3]
     return np.where(within, u_rel, np.maximum(u_rel, EXTRAPOLATED_U_REL)), domain.theta_i_deg
 

@@ -8,15 +8,17 @@ measured domain (`MeasuredDomain`).
 **interpolate** (the default of `rig predict`: it assumes no model). A goniophotometer measures in
 series of one incidence, so the interpolant follows them: within a measured θi, piecewise-linear over a
 Delaunay triangulation of the view directions in the projected (Nusselt) disk, (sin θo cos Δφ,
-sin θo |sin Δφ|), folded by the isotropic symmetry Δφ ↔ −Δφ; between two measured incidences, linear in
-θi, each of the two evaluated at the view that lies in the same place relative to its retroreflection and
-mirror points (`lobe_aligned`), so that the lobes are followed as they move with θi. It interpolates ln f,
-because the retroreflective and specular peaks span decades (cf. the interpolation schemes reviewed by
-Vávra & Filip, and the log-space advice of Dupuy & Jakob 2018).
+sin θo |sin Δφ|), folded by the isotropic symmetry Δφ ↔ −Δφ and triangulated with their mirror images so
+that it is continuous across the plane of incidence (rig.analysis.incidence_views); between two measured
+incidences, linear in θi, each of the two evaluated at the view that lies in the same place relative to its
+retroreflection and mirror points (`lobe_aligned`), so that the lobes are followed as they move with θi. It
+interpolates ln f, because the retroreflective and specular peaks span decades (cf. the interpolation
+schemes reviewed by Vávra & Filip, and the log-space advice of Dupuy & Jakob 2018).
 Its uncertainty combines, in quadrature: the neighbours' u (weighted like the values, i.e. as fully
-correlated, which bounds them); within an incidence, the leave-one-out error of the neighbouring
-measured points (each interpolated from its own neighbours alone: an upper bound, since removing a point
-widens the spacing); between incidences, min(w, 1 − w)·|ln f₁ − ln f₂| of the two bracketing ones.
+correlated, which bounds them); within an incidence, the interpolation error from the curvature that
+leave-one-out errors show, and beyond its hull the slope of ln f times the distance; between incidences,
+min(w, 1 − w)·|ln f₁ − ln f₂| of the two bracketing ones and the bend a third incidence shows; beyond the
+measured θi range, the slope in θi times the distance (`MeasuredDomain.evaluate`; docs/predict.md).
 Outside an incidence's hull it holds the value at the nearest point of the hull's boundary (flagged
 `extrapolated`).
 
@@ -37,9 +39,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import Delaunay
 
 from rig.analysis.fit import UNUSABLE_FLAGS, choose_weighting, fit_dataset, usable_rows
+from rig.analysis.incidence_views import IncidenceViews, incidence_views
 from rig.analysis.prediction import Prediction
 from rig.data.dataset_reader import Dataset
 from rig.physics.brdf_models import get_model
@@ -49,8 +51,6 @@ from rig.physics.geometry import disk_coordinates, sph_to_vec
 SAME_INCIDENCE_DEG = 0.5
 #: A direction this far (degrees of θi) beyond the measured incidences still counts as inside.
 THETA_I_TOLERANCE_DEG = 0.05
-#: ...and a view this far (in the projected disk) outside an incidence's hull.
-HULL_TOLERANCE = 1e-3
 #: Relative step of the central differences of a model's gradient in its parameters.
 GRADIENT_STEP_REL = 1e-5
 #: Values below this fraction of the median are floored before the log (noise on near-black rows).
@@ -59,78 +59,6 @@ LOG_FLOOR_REL = 1e-4
 
 def _as_arrays(*angles_deg: ArrayLike) -> tuple[np.ndarray, ...]:
     return tuple(np.broadcast_arrays(*(np.asarray(a, float) for a in angles_deg)))
-
-
-@dataclass
-class _Incidence:
-    """The measured views of one incidence: their triangulation, ln f and relative u."""
-
-    theta_i_deg: float
-    mesh: Delaunay
-    log_f: np.ndarray
-    u_rel: np.ndarray
-    u_rel_interp: np.ndarray      # per measured point: its leave-one-out error
-
-    def inside(self, xy: np.ndarray) -> np.ndarray:
-        return self.mesh.find_simplex(xy, tol=HULL_TOLERANCE) >= 0
-
-    def evaluate(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """ln f, u_rel (measurements ⊕ interpolation) and inside-ness at disk points (M, 2)."""
-        simplex = self.mesh.find_simplex(xy, tol=HULL_TOLERANCE)
-        inside = simplex >= 0
-        vertices = self.mesh.simplices[np.where(inside, simplex, 0)]
-        transform = self.mesh.transform[np.where(inside, simplex, 0)]
-        b = np.einsum("mij,mj->mi", transform[:, :2], xy - transform[:, 2])
-        weights = np.clip(np.concatenate([b, 1 - b.sum(axis=1, keepdims=True)], axis=1), 0.0, 1.0)
-        weights /= weights.sum(axis=1, keepdims=True)
-        if not inside.all():
-            edge, t = self._nearest_on_hull(xy[~inside])
-            vertices[~inside] = np.column_stack([edge, edge[:, 0]])
-            weights[~inside] = np.column_stack([1 - t, t, np.zeros_like(t)])
-        log_f = (weights * self.log_f[vertices]).sum(axis=1)
-        u_meas = (weights * self.u_rel[vertices]).sum(axis=1)
-        u_interp = (weights * self.u_rel_interp[vertices]).sum(axis=1)
-        return log_f, np.hypot(u_meas, u_interp), inside
-
-
-    def _nearest_on_hull(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For disk points outside the hull: the hull edge nearest to each (its two vertices, (M, 2)) and the
-        position t ∈ [0, 1] of the nearest point along it. Holding the value there extends the interpolant
-        continuously across the hull, as the nearest *vertex* would not: between two rim views the hull's chord
-        cuts off a sliver of grazing views, and the nearest vertex may be a view far along the rim in a lobe."""
-        edges = self.mesh.convex_hull
-        a, b = self.mesh.points[edges[:, 0]], self.mesh.points[edges[:, 1]]
-        ab = b - a
-        t = np.clip(np.einsum("mhk,hk->mh", xy[:, None, :] - a[None], ab) / np.einsum("hk,hk->h", ab, ab), 0.0, 1.0)
-        d2 = (((a[None] + t[..., None] * ab[None]) - xy[:, None, :]) ** 2).sum(axis=2)
-        k = np.argmin(d2, axis=1)
-        return edges[k], t[np.arange(len(k)), k]
-
-
-def _loo_errors(mesh: Delaunay, log_f: np.ndarray) -> np.ndarray:
-    """|ln f̂ − ln f| at each point from the linear interpolant of the others (0 where that would extrapolate).
-
-    Removing a point changes the triangulation only inside its star, so each point is interpolated from
-    a triangulation of its neighbours alone.
-    """
-    indptr, neighbours = mesh.vertex_neighbor_vertices
-    err = np.zeros(len(mesh.points))
-    for k in range(len(mesh.points)):
-        ring = neighbours[indptr[k]:indptr[k + 1]]
-        if len(ring) < 3:
-            continue
-        try:
-            local = Delaunay(mesh.points[ring])
-        except Exception:          # collinear neighbours: no interpolation to compare with
-            continue
-        simplex = int(local.find_simplex(mesh.points[k:k + 1])[0])
-        if simplex < 0:            # a point of the hull: the others would extrapolate to it
-            continue
-        t = local.transform[simplex]
-        b = t[:2] @ (mesh.points[k] - t[2])
-        w = np.append(b, 1 - b.sum())
-        err[k] = abs(float(w @ log_f[ring][local.simplices[simplex]]) - log_f[k])
-    return err
 
 
 def lobe_aligned(xy: np.ndarray, theta_from_deg: np.ndarray, theta_to_deg: float) -> np.ndarray:
@@ -154,7 +82,7 @@ def lobe_aligned(xy: np.ndarray, theta_from_deg: np.ndarray, theta_to_deg: float
 class MeasuredDomain:
     """The measured incidences and, per incidence, the hull of its views in the projected disk."""
 
-    def __init__(self, incidences: list[_Incidence]):
+    def __init__(self, incidences: list[IncidenceViews]):
         if not incidences:
             raise ValueError("no incidence has three or more usable, non-collinear views: nothing to interpolate")
         self.incidences = sorted(incidences, key=lambda inc: inc.theta_i_deg)
@@ -175,20 +103,67 @@ class MeasuredDomain:
     def evaluate(self, theta_i_deg: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """ln f, u_rel and the `extrapolated` flag at flat arrays of θi (M,) and disk points (M, 2)."""
         lo, hi, w, within = self.brackets(theta_i_deg)
-        ends = np.zeros((2, len(theta_i_deg)))
-        u_rel = np.zeros(len(theta_i_deg))
-        inside = within.copy()
-        for end, (side, weight) in enumerate(((lo, 1 - w), (hi, w))):
-            for k in np.unique(side):
-                rows = side == k
-                inc = self.incidences[int(k)]
-                lf, ur, ins = inc.evaluate(lobe_aligned(xy[rows], theta_i_deg[rows], inc.theta_i_deg))
-                ends[end, rows] = lf
-                u_rel[rows] += weight[rows] * ur
-                inside[rows] &= ins | (weight[rows] == 0)
-        log_f = (1 - w) * ends[0] + w * ends[1]
-        u_theta = np.minimum(w, 1 - w) * np.abs(ends[1] - ends[0])
-        return log_f, np.hypot(u_rel, u_theta), ~inside
+        f_lo, u_lo, in_lo = self.at_incidence(lo, theta_i_deg, xy)
+        f_hi, u_hi, in_hi = self.at_incidence(hi, theta_i_deg, xy)
+        inside = within & (in_lo | (w == 1)) & (in_hi | (w == 0))
+        log_f = (1 - w) * f_lo + w * f_hi
+        u_theta = np.minimum(w, 1 - w) * np.abs(f_hi - f_lo)
+        u_rel = np.hypot((1 - w) * u_lo + w * u_hi, u_theta)
+        return log_f, np.hypot(u_rel, np.hypot(self.theta_bend(theta_i_deg, xy, lo, hi, w, f_lo, f_hi),
+                                               self._beyond(theta_i_deg, xy, f_lo))), ~inside
+
+    def at_incidence(self, k: np.ndarray, theta_i_deg: np.ndarray, xy: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """ln f, u_rel and inside-ness of measured incidence k[m] at the view xy[m] of incidence θi[m], lobe-aligned."""
+        out = np.zeros(len(k)), np.zeros(len(k)), np.zeros(len(k), bool)
+        for j in np.unique(k):
+            rows = k == j
+            inc = self.incidences[int(j)]
+            for array, part in zip(out, inc.evaluate(lobe_aligned(xy[rows], theta_i_deg[rows], inc.theta_i_deg))):
+                array[rows] = part
+        return out
+
+    def theta_bend(self, theta_i_deg: np.ndarray, xy: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: np.ndarray,
+              f_lo: np.ndarray, f_hi: np.ndarray) -> np.ndarray:
+        """How far the straight line in θi between the two bracketing incidences may be off: |quadratic − linear|
+        in ln f, the quadratic through the brackets and the next incidence beyond either (the larger of the two),
+        at the lobe-aligned view. Zero at a measured incidence and where fewer than three are measured. The term
+        min(w, 1 − w)·|Δ ln f| is blind to a change both brackets agree on (the diffuse floor rising towards
+        grazing views at another rate than the lobes' tails fall, say); the bend over three incidences is what
+        linear interpolation leaves out."""
+        t = self.theta_i_deg
+        out = np.zeros(len(theta_i_deg))
+        for c in (lo - 1, hi + 1):
+            rows = np.flatnonzero((w > 0) & (w < 1) & (c >= 0) & (c < len(t)))
+            if not rows.size:
+                continue
+            x, ta, tb, tc = theta_i_deg[rows], t[lo[rows]], t[hi[rows]], t[c[rows]]
+            f_c = self.at_incidence(c[rows], x, xy[rows])[0]
+            quadratic = (f_lo[rows] * (x - tb) * (x - tc) / ((ta - tb) * (ta - tc))
+                         + f_hi[rows] * (x - ta) * (x - tc) / ((tb - ta) * (tb - tc))
+                         + f_c * (x - ta) * (x - tb) / ((tc - ta) * (tc - tb)))
+            linear = (1 - w[rows]) * f_lo[rows] + w[rows] * f_hi[rows]
+            out[rows] = np.maximum(out[rows], np.abs(quadratic - linear))
+        return out
+
+    def _beyond(self, theta_i_deg: np.ndarray, xy: np.ndarray, f_end: np.ndarray) -> np.ndarray:
+        """Beyond the measured θi range the value of the last incidence is held; it may be off by the slope in θi
+        between the last two incidences (at the lobe-aligned view) times the distance. With one incidence nothing
+        says how fast the value changes with θi: half the range of its ln f, whatever the distance."""
+        t = self.theta_i_deg
+        out = np.zeros(len(theta_i_deg))
+        for end, (past, nxt) in enumerate(((0, 1), (len(t) - 1, len(t) - 2))):
+            distance = (t[0] - theta_i_deg) if end == 0 else (theta_i_deg - t[-1])
+            rows = np.flatnonzero(distance > THETA_I_TOLERANCE_DEG)
+            if not rows.size:
+                continue
+            if len(t) < 2:
+                out[rows] = 0.5 * np.ptp(self.incidences[0].log_f)
+                continue
+            f_next = self.at_incidence(np.full(rows.size, nxt), theta_i_deg[rows], xy[rows])[0]
+            slope = np.abs(f_end[rows] - f_next) / abs(t[past] - t[nxt])
+            out[rows] = slope * distance[rows]
+        return out
 
     def extrapolated(self, theta_i_deg: np.ndarray, xy: np.ndarray) -> np.ndarray:
         return self.evaluate(theta_i_deg, xy)[2]
@@ -198,7 +173,7 @@ def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS
                     loo_cache: dict[bytes, np.ndarray] | None = None) -> MeasuredDomain:
     """Group a dataset's usable rows by incidence and triangulate each group's views.
 
-    `loo_cache`: leave-one-out errors by incidence content, kept by a caller that rebuilds the domain as rows
+    `loo_cache`: leave-one-out curvatures by incidence content, kept by a caller that rebuilds the domain as rows
     arrive (adaptive sampling adds one incidence's views at a time; the others need not be redone)."""
     keep = usable_rows(ds, exclude_flags) & np.isfinite(ds["brdf_per_sr"])
     theta_i, f = ds["theta_i_deg"][keep], ds["brdf_per_sr"][keep]
@@ -216,22 +191,10 @@ def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS
             groups.append([int(k)])
     incidences = []
     for rows in groups:
-        points, _ = np.unique(xy[rows].round(12), axis=0, return_index=True)
-        if len(points) < 3:
-            continue
-        rows_a = np.array(rows)
-        try:
-            mesh = Delaunay(xy[rows_a])
-        except Exception:          # collinear views (a single plane of incidence): no 2-D interpolant
-            continue
-        key = xy[rows_a].tobytes() + log_f[rows_a].tobytes()
-        loo = loo_cache.get(key) if loo_cache is not None else None
-        if loo is None:
-            loo = _loo_errors(mesh, log_f[rows_a])
-            if loo_cache is not None:
-                loo_cache[key] = loo
-        incidences.append(_Incidence(float(np.mean(theta_i[rows_a])), mesh, log_f[rows_a], u_rel[rows_a],
-                                     loo))
+        r = np.array(rows)
+        inc = incidence_views(float(np.mean(theta_i[r])), xy[r], log_f[r], u_rel[r], loo_cache)
+        if inc is not None:
+            incidences.append(inc)
     return MeasuredDomain(incidences)
 
 

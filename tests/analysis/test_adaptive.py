@@ -10,7 +10,6 @@ from rig.analysis.adaptive import (
     represented_width_deg,
     rows_dataset,
     spread_by_gain,
-    theta_curvature_u,
 )
 from rig.analysis.predict import measured_domain
 from rig.analysis.validation import TruthPredictor
@@ -85,7 +84,9 @@ def test_the_bend_in_theta_i_is_what_linear_interpolation_leaves_out():
     xy = geo.disk_coordinates(np.array([p.theta_o_deg for p in at]), np.array([p.phi_o_deg for p in at]),
                               np.array([p.phi_i_deg for p in at]))
     expected = np.where(theta < 40, 1e-3 * (theta - 20) * (40 - theta), 1e-3 * (theta - 40) * (60 - theta))
-    assert theta_curvature_u(domain, theta, xy) == pytest.approx(expected, abs=1e-9)
+    lo, hi, w, _ = domain.brackets(theta)
+    f_lo, f_hi = domain.at_incidence(lo, theta, xy)[0], domain.at_incidence(hi, theta, xy)[0]
+    assert domain.theta_bend(theta, xy, lo, hi, w, f_lo, f_hi) == pytest.approx(expected, abs=1e-9)
     assert expected[np.isclose(theta, 30.0)] == pytest.approx(0.1)
 
 

@@ -35,8 +35,8 @@ def smooth_brdf(theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg):
     return 0.2 * (1.0 + 0.5 * np.einsum("...i,...i->...", wo, mirror) ** 2)
 
 
-def dataset(value=smooth_brdf, u_rel=0.01, phi_i=0.0) -> Dataset:
-    ti, to, po = (a.ravel() for a in np.meshgrid(THETA_I, THETA_O, PHI_O, indexing="ij"))
+def dataset(value=smooth_brdf, u_rel=0.01, phi_i=0.0, phi_o_deg=PHI_O) -> Dataset:
+    ti, to, po = (a.ravel() for a in np.meshgrid(THETA_I, THETA_O, phi_o_deg, indexing="ij"))
     pi_ = np.full(ti.shape, phi_i)
     f = value(ti, pi_, to, po)
     columns = {"theta_i_deg": ti, "phi_i_deg": pi_, "theta_o_deg": to, "phi_o_deg": po, "brdf_per_sr": f,

@@ -8,15 +8,7 @@ truth. The figures with the per-series export beside them: benchmarks/radiance.p
 import numpy as np
 import pytest
 
-from repo_paths import CAMPAIGNS
-from rig.acquisition.execute import execute
 from rig.analysis.fit import fit_dataset
-from rig.config.campaign import load_campaign
-from rig.config.rigfile import simulated_rig
-from rig.data.dataset_reader import load
-from rig.physics.brdf_models import get_model
-from rig.planning.plan import build_plan
-from rig.session.connect import open_campaign_rig
 
 radiance = pytest.importorskip("rig.data.radiance")
 pytest.importorskip("pyradiance", reason="pyradiance (Radiance's tools) is a test dependency: pip install -e '.[test]'")
@@ -26,14 +18,9 @@ MAX_THETA_I_DEG = 85.5
 
 
 @pytest.fixture(scope="module")
-def paper(tmp_path_factory):
-    campaign, rig = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml"), simulated_rig()
-    out = tmp_path_factory.mktemp("paper") / "ds"
-    assert execute(campaign, None, rig, build_plan(campaign, rig), out,
-                   open_campaign_rig(campaign, rig)).status == "complete"
-    ds = load(out)
-    truth = campaign.sample.simulated_brdf
-    return ds, get_model(truth.model)(*ds.directions(), truth.params)
+def paper(paper_run):
+    ds, truth = paper_run
+    return ds, truth(*ds.directions())
 
 
 def xml_errors(ds, truth, xml):

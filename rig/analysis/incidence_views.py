@@ -1,0 +1,205 @@
+"""The measured views of one incidence as an interpolant of ln f in the projected disk, with the error it makes.
+
+The views are triangulated together with their mirror images across the plane of incidence (an isotropic sample's
+value at Δφ equals its value at −Δφ), so that the plane is interior to the mesh and the interpolant is symmetric,
+hence continuous, across it (`mirrored_views`).
+
+The interpolation error is estimated from held-out data: each measured view is predicted from its neighbours alone
+(leave one out), and the error found there is turned into a local curvature of ln f. For a quadratic q with
+Hessian H, the linear interpolant over a simplex with vertices v_j and barycentric weights w_j errs at x by
+exactly ½ Σ w_j (v_j − x)ᵀ H (v_j − x) (the standard error formula of linear interpolation; e.g. Waldron 1998,
+"The error in linear interpolation at the vertices of a simplex"). Taking H ≈ κ·I gives
+e(x) = ½ κ Σ w_j |v_j − x|²: zero at the measured views, largest in the middle of long edges, and the same
+formula at a held-out view gives κ from its leave-one-out error. Beyond the hull the value is held at the nearest
+point of the hull's edge; its error there grows with the distance d by the slope of ln f along the way in
+(|∇ ln f|·d) and the curvature (½ κ d²).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import Delaunay, cKDTree
+
+#: ...and a view this far (in the projected disk) outside an incidence's hull still counts as inside.
+HULL_TOLERANCE = 1e-3
+#: A folded view this close to the plane of incidence (in the projected disk) lies on it: it is not mirrored.
+ON_PLANE = 1e-9
+#: Views of one incidence closer than this in the projected disk (≈ 0.02° near the normal) are one view measured
+#: again: the same nominal direction in several series, scattered by the achieved angles (~0.01°).
+SAME_VIEW = 3e-4
+
+
+def incidence_views(theta_i_deg: float, xy: np.ndarray, log_f: np.ndarray, u_rel: np.ndarray,
+                    cache: dict[bytes, np.ndarray] | None = None) -> IncidenceViews | None:
+    """The interpolant of one incidence's measured views (disk points (M, 2), ln f, relative u), or None where they
+    do not span an area (fewer than three distinct views, or all on one line). `cache`: curvatures by content, kept
+    by a caller that rebuilds the domain as rows arrive (adaptive sampling adds one incidence at a time)."""
+    xy, log_f, u_rel = repeats_merged(xy, log_f, u_rel)
+    if len(xy) < 3:
+        return None
+    views, source, mirror = mirrored_views(xy)
+    try:
+        mesh = Delaunay(views)
+    except Exception:          # collinear views (a single plane of incidence): no 2-D interpolant
+        return None
+    key = views.tobytes() + log_f.tobytes()
+    kappa = cache.get(key) if cache is not None else None
+    if kappa is None:
+        kappa = loo_curvature(mesh, log_f[source], u_rel[source], mirror)
+        if cache is not None:
+            cache[key] = kappa
+    return IncidenceViews(theta_i_deg, mesh, log_f[source], u_rel[source], kappa)
+
+
+def repeats_merged(xy: np.ndarray, log_f: np.ndarray, u_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Views closer than SAME_VIEW (chained) merged into one: their mean position and ln f, and a relative u of
+    their RMS u ⊕ the scatter of their ln f (repeats that disagree beyond their u say so). Left apart, two
+    repeats 1e-4 apart would bound slivers, and their noise would read as a curvature of 1e4."""
+    pairs = cKDTree(xy).query_pairs(SAME_VIEW, output_type="ndarray")
+    n = len(xy)
+    if not len(pairs):
+        return xy, log_f, u_rel
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    size = np.bincount(label, minlength=count)
+
+    def mean(values: np.ndarray) -> np.ndarray:
+        return np.bincount(label, values, minlength=count) / size
+
+    mean_log_f = mean(log_f)
+    scatter2 = mean((log_f - mean_log_f[label]) ** 2)
+    merged_xy = np.column_stack([mean(xy[:, 0]), mean(xy[:, 1])])
+    return merged_xy, mean_log_f, np.sqrt(mean(u_rel ** 2) + scatter2)
+
+
+def mirrored_views(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The folded views (M, 2) and their mirror images (x, −y) across the plane of incidence: the views (K, 2), the
+    row of `xy` each comes from (K,), and the index of each view's image (K,; its own index for views on the
+    plane, which are not doubled).
+
+    Triangulating the folded half-disk alone makes the plane of incidence (Δφ = 0 and 180°) an edge of the hull:
+    the views nearest to it bound thin triangles whose values jump across y = 0, and a view on the plane between
+    two measured ones can fall outside the hull altogether."""
+    on_plane = np.abs(xy[:, 1]) <= ON_PLANE
+    off = np.flatnonzero(~on_plane)
+    views = np.concatenate([np.column_stack([xy[:, 0], np.where(on_plane, 0.0, xy[:, 1])]),
+                            np.column_stack([xy[off, 0], -xy[off, 1]])])
+    source = np.concatenate([np.arange(len(xy)), off])
+    mirror = np.arange(len(views))
+    mirror[off] = len(xy) + np.arange(len(off))
+    mirror[len(xy):] = off
+    return views, source, mirror
+
+
+def loo_curvature(mesh: Delaunay, log_f: np.ndarray, u_rel: np.ndarray, mirror: np.ndarray) -> np.ndarray:
+    """κ at each view (module docstring): 2·e / Σ w_j |r_j − v|², where e is the error of the linear interpolant
+    of the view's neighbours r_j alone (removing a view changes the triangulation only inside its star) beyond
+    what the measurements' own noise explains: e² = max(|ln f̂ − ln f|² − u² − Σ w_j² u_j², 0) with u the relative
+    u of the view and of its neighbours (otherwise two close views would turn their noise into a curvature). A
+    view and its mirror image are one measurement: both leave together, so that a view near the plane is not
+    "predicted" from its own reflection. Where the neighbours cannot interpolate the view (a view on the hull, or
+    collinear neighbours), κ is the largest of its neighbours'."""
+    indptr, neighbours = mesh.vertex_neighbor_vertices
+    kappa = np.full(len(mesh.points), np.nan)
+    rings = []
+    for k in range(len(mesh.points)):
+        pair = {k, int(mirror[k])}
+        ring = np.array(sorted({int(v) for j in pair for v in neighbours[indptr[j]:indptr[j + 1]]} - pair))
+        rings.append(ring)
+        if len(ring) < 3:
+            continue
+        try:
+            local = Delaunay(mesh.points[ring])
+        except Exception:          # collinear neighbours: no interpolation to compare with
+            continue
+        simplex = int(local.find_simplex(mesh.points[k:k + 1])[0])
+        if simplex < 0:            # a view of the hull: the others would extrapolate to it
+            continue
+        t = local.transform[simplex]
+        b = t[:2] @ (mesh.points[k] - t[2])
+        w = np.append(b, 1 - b.sum())
+        corners = ring[local.simplices[simplex]]
+        spread = float(w @ ((mesh.points[corners] - mesh.points[k]) ** 2).sum(axis=1))
+        noise2 = u_rel[k] ** 2 + float(w ** 2 @ u_rel[corners] ** 2)
+        excess = np.sqrt(max((float(w @ log_f[corners]) - log_f[k]) ** 2 - noise2, 0.0))
+        if spread > 0:
+            kappa[k] = 2 * excess / spread
+    known = np.where(np.isfinite(kappa), kappa, 0.0)
+    for k in np.flatnonzero(~np.isfinite(kappa)):
+        kappa[k] = float(known[rings[k]].max()) if len(rings[k]) else 0.0
+    return kappa
+
+
+@dataclass
+class IncidenceViews:
+    """The measured views of one incidence: their (mirrored) triangulation, ln f, relative u and curvature κ."""
+
+    theta_i_deg: float
+    mesh: Delaunay
+    log_f: np.ndarray
+    u_rel: np.ndarray
+    curvature: np.ndarray         # per view: κ from its leave-one-out error (loo_curvature)
+
+    def inside(self, xy: np.ndarray) -> np.ndarray:
+        return self.mesh.find_simplex(xy, tol=HULL_TOLERANCE) >= 0
+
+    def evaluate(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """ln f, u_rel (measurements ⊕ interpolation ⊕ extrapolation) and inside-ness at disk points (M, 2)."""
+        simplex = self.mesh.find_simplex(xy, tol=HULL_TOLERANCE)
+        inside = simplex >= 0
+        vertices = self.mesh.simplices[np.where(inside, simplex, 0)]
+        transform = self.mesh.transform[np.where(inside, simplex, 0)]
+        b = np.einsum("mij,mj->mi", transform[:, :2], xy - transform[:, 2])
+        weights = np.clip(np.concatenate([b, 1 - b.sum(axis=1, keepdims=True)], axis=1), 0.0, 1.0)
+        weights /= weights.sum(axis=1, keepdims=True)
+        at = xy.copy()
+        slope = np.zeros(len(xy))
+        if not inside.all():
+            edge, t, facet = self._nearest_on_hull(xy[~inside])
+            vertices[~inside] = np.column_stack([edge, edge[:, 0]])
+            weights[~inside] = np.column_stack([1 - t, t, np.zeros_like(t)])
+            at[~inside] = self.mesh.points[edge[:, 0]] * (1 - t)[:, None] + self.mesh.points[edge[:, 1]] * t[:, None]
+            slope[~inside] = self._gradient_norm(facet)
+        log_f = (weights * self.log_f[vertices]).sum(axis=1)
+        u_meas = (weights * self.u_rel[vertices]).sum(axis=1)
+        kappa = self.curvature[vertices].max(axis=1)
+        spread = (weights * ((self.mesh.points[vertices] - at[:, None, :]) ** 2).sum(axis=2)).sum(axis=1)
+        beyond = np.hypot(*(xy - at).T)
+        u_model = 0.5 * kappa * (spread + beyond ** 2) + slope * beyond
+        return log_f, np.hypot(u_meas, u_model), inside
+
+    def _gradient_norm(self, simplices: np.ndarray) -> np.ndarray:
+        """|∇ ln f| of the linear interpolant on each of the given triangles."""
+        corners = self.mesh.points[self.mesh.simplices[simplices]]           # (M, 3, 2)
+        values = self.log_f[self.mesh.simplices[simplices]]                  # (M, 3)
+        edges = corners[:, 1:] - corners[:, :1]
+        rises = values[:, 1:] - values[:, :1]
+        gradient = np.linalg.solve(edges, rises[..., None])[..., 0]
+        return np.hypot(*gradient.T)
+
+    def _nearest_on_hull(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For disk points outside the hull: the hull edge nearest to each (its two vertices, (M, 2)), the
+        position t ∈ [0, 1] of the nearest point along it, and the triangle on its inner side. Holding the value
+        there extends the interpolant continuously across the hull, as the nearest *vertex* would not: between two
+        rim views the hull's chord cuts off a sliver of grazing views, and the nearest vertex may be a view far
+        along the rim in a lobe."""
+        edges, facets = self._hull
+        a, b = self.mesh.points[edges[:, 0]], self.mesh.points[edges[:, 1]]
+        ab = b - a
+        t = np.clip(np.einsum("mhk,hk->mh", xy[:, None, :] - a[None], ab) / np.einsum("hk,hk->h", ab, ab), 0.0, 1.0)
+        d2 = (((a[None] + t[..., None] * ab[None]) - xy[:, None, :]) ** 2).sum(axis=2)
+        k = np.argmin(d2, axis=1)
+        return edges[k], t[np.arange(len(k)), k], facets[k]
+
+    @cached_property
+    def _hull(self) -> tuple[np.ndarray, np.ndarray]:
+        """The hull's edges (their two vertices) and the triangle that holds each: a triangle's side opposite its
+        vertex j is on the hull where it has no neighbour across it."""
+        simplex, j = np.nonzero(self.mesh.neighbors == -1)
+        others = (j[:, None] + np.array([1, 2])) % 3
+        return self.mesh.simplices[simplex[:, None], others], simplex
