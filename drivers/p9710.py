@@ -8,6 +8,17 @@ the meter's own verdict (a refused command, an overloaded input), so it is a
 persistent DeviceError naming its meaning and is never retried; a garbled,
 cut-off or missing reply is a transient fault, retried after a reconnect.
 
+`TD0` comes first on every connect: a meter left in the `TD1` mode (by another
+program or an earlier session; §15.3.9) acknowledges with `#` and answers an
+error with `*` instead of the bare LF and `?x` this driver reads. `TD0` itself
+may be acknowledged either way (the manual does not say which mode answers it).
+
+An underload (`?32` to a reading: less light than the range resolves, e.g. the
+lamp off or the detector covered) is not a failure of the meter but a reading
+in the dark: `read` returns it flagged (`IlluminanceReading.floor_a`, the
+floor of the range `GR` then reports), with the midpoint of [0, floor) as its
+value; rig.acquisition.meter_readings refuses such a reading as an E⊥.
+
 Illuminance = photocurrent (`MA`) × the detector's certificate factor from the
 rig configuration, which the dataset records; `MV` (the meter's own calibrated
 value) is never used, so a factor stored in the head cannot silently differ
@@ -47,6 +58,10 @@ _ERROR_REPLY = re.compile(r"\?(\d+)")
 _IDENTITY = re.compile(r"P-?9710 V?\d+(\.\d+)+")
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 RANGE_REPLIES = {str(r): r for r in range(8)}      # 0 = 2 mA full scale … 7 = 200 pA (most sensitive)
+#: The error bit of an underload: less current than the range resolves.
+UNDERLOAD = 32
+#: The floor of ranges 0 … 7: the last digit each displays (§12.2: ±2.000 mA … ±200.0 pA, full scale / 2000).
+RANGE_FLOOR_A = tuple(1e-6 * 10.0 ** -r for r in range(8))
 #: `SN` takes the CW integration time in steps of 0.1 ms, 1 … 59999.
 INTEGRATION_STEP_S = 1e-4
 INTEGRATION_STEPS = range(1, 60000)
@@ -61,10 +76,24 @@ def error_meaning(code: int) -> str:
     return " + ".join(meanings)
 
 
+class MeterRefusal(DeviceError):
+    """An error reply `?code`: the meter's verdict on the line (persistent)."""
+
+    def __init__(self, device: str, message: str, code: int):
+        super().__init__(device, message)
+        self.code = code
+
+
 def acknowledged(reply: str) -> None:
     """A command without an answer is acknowledged by a bare line feed: nothing else is."""
     if reply:
         raise UnexpectedReply("{command!r} answered {reply!r} instead of the bare line feed that acknowledges it")
+
+
+def _plain_mode_acknowledged(reply: str) -> None:
+    """`TD0`'s acknowledgement: the bare line feed of the mode it sets, or `#` from the `TD1` mode it leaves."""
+    if reply not in ("", "#"):
+        raise UnexpectedReply("{command!r} answered {reply!r}, not the bare line feed or the '#' that acknowledge it")
 
 
 def _range(reply: str) -> int:
@@ -82,6 +111,7 @@ def _current_and_range(reply: str) -> tuple[float, int]:
 
 
 # -- the command table (§15.3) ---------------------------------------------------------------------
+PLAIN_ACKNOWLEDGEMENT = Query("TD0", _plain_mode_acknowledged)   # no `#`/`*` acknowledge characters
 MODEL = Query("GI", str)                   # software version: `P-9710 x.x` (manual) or `P9710 V5.6`
 SERIAL_NUMBER = Query("TT", str)
 DETECTOR = Query("GK", str)
@@ -134,9 +164,18 @@ class P9710(LineInstrument, IlluminanceMeter):
         return self._identity
 
     def read(self) -> IlluminanceReading:
-        """One measurement: the meter integrates, autoranges, then answers current and range."""
-        current, range_index = self.retrying(
-            READING.text(), lambda: self.ask(READING, timeout_s=self.reading_timeout_s))
+        """One measurement: the meter integrates, autoranges, then answers current and range. An underload
+        is a reading below the floor of the range the meter is on (`GR`), flagged by `floor_a`."""
+        try:
+            current, range_index = self.retrying(
+                READING.text(), lambda: self.ask(READING, timeout_s=self.reading_timeout_s))
+        except MeterRefusal as exc:
+            if exc.code != UNDERLOAD:
+                raise
+            range_index = self.measuring_range()
+            floor = RANGE_FLOOR_A[range_index]
+            return IlluminanceReading(floor / 2 * self.calibration_lx_per_a, floor / 2, self.calibration_lx_per_a,
+                                      range_index=range_index, floor_a=floor)
         return IlluminanceReading(current * self.calibration_lx_per_a, current, self.calibration_lx_per_a,
                                   range_index=range_index)
 
@@ -147,9 +186,11 @@ class P9710(LineInstrument, IlluminanceMeter):
 
     # -- protocol ------------------------------------------------------------------------------
     def reconnect(self) -> None:
-        """(Re)open the port, check that a P-9710 answers, switch autorange on and set the integration
-        time (a retry's way back, as a power-cycled or hand-operated meter may have lost them)."""
+        """(Re)open the port, switch the `#`/`*` acknowledgements off, check that a P-9710 answers, switch
+        autorange on and set the integration time (a retry's way back, as a power-cycled or hand-operated meter
+        may have lost them)."""
         self.link.reconnect()
+        self.ask(PLAIN_ACKNOWLEDGEMENT)
         model = self.ask(MODEL)
         if not _IDENTITY.fullmatch(model):
             raise DeviceError(self.name, f"{MODEL.text()!r} answered {model!r}: not a P-9710")
@@ -163,8 +204,9 @@ class P9710(LineInstrument, IlluminanceMeter):
         self.ask(Query(setting.template, acknowledged, setting.unit), *args)
 
     def check_refusal(self, line: str, reply: str) -> None:
-        """`?x` is the meter's verdict: a persistent DeviceError naming the code's meaning."""
+        """`?x` is the meter's verdict: a persistent MeterRefusal naming the code's meaning."""
         self._heard = True
         refused = _ERROR_REPLY.fullmatch(reply)
         if refused:
-            raise DeviceError(self.name, f"{line!r} answered {reply!r}: {error_meaning(int(refused[1]))}")
+            code = int(refused[1])
+            raise MeterRefusal(self.name, f"{line!r} answered {reply!r}: {error_meaning(code)}", code)

@@ -22,8 +22,13 @@ doc/BruteForce.txt; github.com/matusm/Bev.Instruments.P9710, P9710.cs):
 - `ST` and the code-protected or EEPROM-writing commands (SP, SC, SE, TS, TE,
   SF, TA, RA) answer `?4`, as the real unit answers `ST` without the right `RA`
   code: the peer knows no code, so its head EEPROM stays read-only;
-- `TD1`'s `#`/`*` acknowledge characters are stored but not produced (the
-  manual does not give their format).
+- `TD1` (§15.3.9: "'#' and '*' (error) as answer") switches on acknowledge
+  characters: a line whose commands have no answer is acknowledged by `#` LF
+  instead of the bare LF, and an error line answers `*` LF instead of `?x`
+  LF; lines with answers are unchanged. Our reading of a one-line entry: the
+  manual shows no example. The mode in force once the line has run answers it
+  (`TD0` is acknowledged by a bare LF, `TD1` by `#`); a meter can be powered up
+  in either mode (`acknowledge_chars`), as one left in `TD1` would be.
 """
 
 from __future__ import annotations
@@ -99,8 +104,9 @@ class P9710Peer(LinePeer):
     SHORT_FRACTION = 1.0        # the whole reply, without its terminator
 
     def __init__(self, world: SimWorld, *, responsivity_a_per_lx: float | None = None,
-                 identity: str = "P9710 V5.6"):
-        """`identity`: what `GI` answers, a real unit's `P9710 V5.6` or the manual's `P-9710 4.7`."""
+                 identity: str = "P9710 V5.6", acknowledge_chars: bool = False):
+        """`identity`: what `GI` answers, a real unit's `P9710 V5.6` or the manual's `P-9710 4.7`;
+        `acknowledge_chars`: in the `TD1` mode (`#`/`*`) from the start."""
         super().__init__("pty")
         self.world = world
         self.identity = identity
@@ -113,7 +119,7 @@ class P9710Peer(LinePeer):
         self.calibration_entry = 0
         self.wavelength_nm = 555
         self.sync = False
-        self.acknowledge_chars = False
+        self.acknowledge_chars = acknowledge_chars
         self._last_current_a = 0.0           # SO1 takes it as the offset
         self._last_answer = 0.0              # of MA, MV or MU: GA, GB, GD, GP refer to it
         self._queries: dict[str, Callable[[], str]] = {
@@ -135,11 +141,17 @@ class P9710Peer(LinePeer):
         try:
             commands = self.parse(text)
         except MeterError as exc:
-            return self.wire(f"?{exc.code}", None)
+            return self.wire(self.acknowledge(f"?{exc.code}"), None)
         fault = self.take_fault() if any(c in MEASUREMENTS for c, _ in commands) else None
         if fault == "no_reply":
             return None
-        return self.wire("?16" if fault == "overload" else self.execute(commands), fault)
+        return self.wire(self.acknowledge("?16" if fault == "overload" else self.execute(commands)), fault)
+
+    def acknowledge(self, answer: str) -> str:
+        """The line's answer as the `TD` mode sends it: `#` for none and `*` for an error in `TD1`."""
+        if not self.acknowledge_chars:
+            return answer
+        return "#" if not answer else "*" if answer.startswith("?") else answer
 
     @staticmethod
     def parse(text: str) -> list[tuple[str, str]]:
@@ -206,21 +218,21 @@ class P9710Peer(LinePeer):
         self._last_current_a = current
         return current - self.offset_a
 
-    def _answer(self, value: float) -> str:
+    def _measured(self, value: float) -> str:
         self._last_answer = value
         return number(value)
 
     def _current(self) -> str:
-        return self._answer(self._measure())
+        return self._measured(self._measure())
 
     def _value(self) -> str:
         """The calibrated value: amperes with `SD-1`, else × the head's factor (lx per A)."""
         factor = 1.0 if self.calibration_entry == -1 else 1.0 / self.responsivity_a_per_lx
-        return self._answer(self._measure() * factor)
+        return self._measured(self._measure() * factor)
 
     def _voltage(self) -> str:
         """The current amplifier's output: ±2 V at full scale of the present range."""
-        return self._answer(self._measure() / FULL_SCALE_A[self.range] * 2.0)
+        return self._measured(self._measure() / FULL_SCALE_A[self.range] * 2.0)
 
     def _peak(self, sign: int) -> float:
         """Max (+1) or min (−1) ADC sample of the last measurement: ±3 σ of the noise around it."""

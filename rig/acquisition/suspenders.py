@@ -181,10 +181,14 @@ class IlluminanceJump(Suspender):
         return f"E⊥ {after.value_lx:.1f} lx, {before.value_lx:.1f} lx at the previous reading"
 
     def check(self) -> str | None:
-        """Two meter readings a check interval apart differ by more than the warm-up criterion."""
+        """Two meter readings a check interval apart differ by more than the warm-up criterion, or the
+        second is in the dark (an underload: below the meter's floor)."""
         first = self.meter.read().illuminance_lx
         self.wait(self.steady.warmup_check_s)
-        second = self.meter.read().illuminance_lx
+        reading = self.meter.read()
+        second = reading.illuminance_lx
+        if reading.underload:
+            return f"no light on the meter: E⊥ below its floor ({second:.2g} lx)"
         change = abs(second - first) / max(abs(second), 1e-300)
         if change >= self.steady.warmup_stable_rel or not second > 0:
             return f"E⊥ still changing: {first:.1f} → {second:.1f} lx"

@@ -17,6 +17,14 @@ class IlluminanceReading:
     calibration_lx_per_a: float
     #: The meter's measuring range for this reading (P-9710: 0 = 2 mA full scale … 7 = 200 pA); None if unknown.
     range_index: int | None = None
+    #: Set when the meter saw less than its range resolves (an underload, P-9710 `?32`): the photocurrent lay
+    #: somewhere in [0, floor_a), and photocurrent_a / illuminance_lx are that interval's midpoint
+    #: (rig.physics.illuminance.below_floor). None for an ordinary reading.
+    floor_a: float | None = None
+
+    @property
+    def underload(self) -> bool:
+        return self.floor_a is not None
 
 
 @dataclass(frozen=True)

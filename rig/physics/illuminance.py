@@ -20,6 +20,19 @@ import numpy as np
 PRIOR_DOF = 10
 
 
+def underload_u(floor: float) -> float:
+    """Standard uncertainty of a reading known only to lie below `floor` (a meter's underload).
+
+    Light makes a photocurrent of one sign, so the quantity lies in [0, floor): with nothing known
+    inside that interval, a rectangular distribution over it, whose midpoint floor/2 is the value
+    the reading carries (rig.core.values.IlluminanceReading.floor_a) and whose standard uncertainty
+    is floor/√12 (GUM 4.3.7). For the P-9710 the floor is the last digit the range displays (its
+    resolution, full scale / 2000: 0.1 pA on range 7); the meter's offset error (±2 pA on ranges 6
+    and 7, manual §12.2) belongs to the range, not to the underload.
+    """
+    return floor / math.sqrt(12.0)
+
+
 @dataclass(frozen=True)
 class IlluminanceEstimate:
     """E⊥ averaged over `n` readings at `rig_time_s`, with statistical and calibration parts."""

@@ -146,17 +146,36 @@ def test_readings_cost_the_integration_time_in_rig_time_not_wall_time(meter, wor
     assert wall_sleeps == []
 
 
-@pytest.mark.parametrize("light, code", [("direct", 16), ("none", 32)])
-def test_light_beyond_the_meters_span_is_a_persistent_error(world, events, no_leaks, light, code):
-    with P9710Peer(world, responsivity_a_per_lx=1e-6 if light == "direct" else None) as peer:   # 5 mA > 2 mA
-        if light == "none":
-            world.lamp.switch(False)
+def test_more_light_than_the_top_range_holds_is_a_persistent_error(world, events, no_leaks):
+    with P9710Peer(world, responsivity_a_per_lx=1e-6) as peer:          # 5 mA > 2 mA
         meter = connect(peer.path, world, events)
         with pytest.raises(DeviceError) as err:
             meter.read()
         meter.close()
-    assert str(err.value) == f"meter: 'MA;GR' answered '?{code}': {error_meaning(code)}"
+    assert str(err.value) == f"meter: 'MA;GR' answered '?16': {error_meaning(16)}"
     assert not err.value.transient and events == []
+
+
+def test_a_reading_in_the_dark_is_below_the_floor_of_the_most_sensitive_range(meter, world, events):
+    """Lamp off: the autoranger ends on range 7, whose floor (0.1 pA) the meter cannot resolve (`?32`); the
+    reading is the floor's midpoint, flagged, and the meter reads on once the light is back."""
+    world.lamp.switch(False)
+    dark = meter.read()
+    assert dark.underload and dark.range_index == 7 and dark.floor_a == pytest.approx(1e-13, rel=1e-12)
+    assert dark.photocurrent_a == pytest.approx(0.5e-13, rel=1e-12)
+    world.lamp.switch(True)
+    assert not meter.read().underload and events == []
+
+
+def test_a_meter_left_in_the_td1_mode_is_switched_back_at_connect(world, events, no_leaks):
+    """A meter powered up with `#`/`*` acknowledgements (§15.3.9 `TD1`) answers `SB1` with `#`: the driver's `TD0`
+    comes first, so it connects, reads, and leaves the meter in the plain mode."""
+    with P9710Peer(world, acknowledge_chars=True) as peer:
+        meter = connect(peer.path, world, events)
+        reading = meter.read()
+        meter.close()
+    assert not peer.acknowledge_chars and peer.autorange and peer.integration_steps == 2000
+    assert reading.illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01) and events == []
 
 
 def test_an_injected_overload_is_not_retried(meter, peer, world, events):
@@ -257,6 +276,17 @@ def test_offset_battery_and_percent_of_range(exchange, no_leaks):
     assert float(exchange(b"MA\n")) == pytest.approx(0.0, abs=5e-6 * 0.02)
     assert exchange(b"SO0;GS2\n") == b"+0.0000E+00\n"
     assert exchange(b"\n") == b"\n"
+
+
+def test_the_td1_mode_acknowledges_with_hash_and_answers_errors_with_star(world):
+    """§15.3.9: `TD1` → "#" and "*" (error) as answer; answers with content are unchanged; `TD0` back to LF."""
+    peer = P9710Peer(world, acknowledge_chars=True)
+    replies = [peer.respond(request) for request in (b"SB1", b"SN1000;SB1", b"XX", b"SN0", b"GI", b"GR", b"TD0",
+                                                     b"SB1", b"XX", b"TD1", b"")]
+    assert replies == [b"#\n", b"#\n", b"*\n", b"*\n", b"P9710 V5.6\n", b"0\n", b"\n", b"\n", b"?1\n", b"#\n",
+                       b"#\n"]
+    peer.inject("overload")
+    assert peer.respond(b"MA") == b"*\n"
 
 
 def test_peer_listens_on_a_pty_and_names_its_faults(world, no_leaks):
