@@ -6,12 +6,20 @@ replies only to queries. The older PSC-232 / SM-D dialects are not supported.
 
 The lamp runs in constant-current mode: on connect the driver takes over both
 setpoints from the front panel (remote hand-over), sets the supply's own
-current limit from the rig file (so no setpoint, ours or the front panel's,
-can exceed it) and the voltage setpoint to the supply's maximum, or a
-configured compliance, so the current setpoint rules. Current changes are
+current and voltage limits from the rig file (so no setpoint, ours or the
+front panel's, can exceed them) and the voltage setpoint to the lamp's voltage
+limit (its rating plus a margin), never to the supply's maximum: an open
+filament or a loose socket then sees at most that voltage, on an SM500 too.
+The current setpoint rules below it. Current changes are
 ramped in steps on the rig clock, because a cold filament has about a tenth of
 its hot resistance (inrush). Every number goes out as a plain decimal with
 the read-back's four digits (`SOURce:CURrent 4.1700`), never with an exponent.
+
+A lamp that carries no current is not always burnt out: `output_loss()` asks
+the supply why (status register A: interlock open, remote shut-down, AC/DC
+fail, over-temperature; `SYSTem:WARning?`; an expired watchdog) and says
+whether rig may switch the output on again (only after the watchdog switched
+it off) or must wait for the cause to clear.
 
 Last on connect the supply's communication watchdog is armed for the whole
 session: if no command reaches it for `watchdog_s` (a killed process, a dead
@@ -34,12 +42,13 @@ from typing import Any, TypeVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
-from rig.drivers.interfaces import LampSupply
-from rig.drivers.line_instrument import LineInstrument, Query, Setting, choice, number
+from rig.drivers import delta_sm_commands as scpi
+from rig.drivers.delta_sm_commands import plain
+from rig.drivers.interfaces import LampSupply, OutputLoss
+from rig.drivers.line_instrument import LineInstrument, Query, Setting
 from rig.drivers.retry import DEFAULT_RETRY, EventSink, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
-ERROR_QUEUE_SIZE = 10
 #: Switching off is the safety action: it gets at least this many attempts.
 OFF_ATTEMPTS = 6
 #: The current ramp before `OUTPut OFF` lasts at most this long, however slow the warm-up ramp is.
@@ -49,53 +58,9 @@ OFF_CURRENT_A = 0.01
 OFF_CURRENT_REL = 0.01
 #: Feeds per watchdog period: one late or lost feed does not let the watchdog expire.
 FEEDS_PER_PERIOD = 4
-#: The watchdog's range (manual §5.6.10), ms.
-WATCHDOG_MIN_MS, WATCHDOG_MAX_MS = 20, 10000
-MAKER = "DELTA ELEKTRONIKA"
+#: The rig-file key of the lamp's voltage limit, named when it is missing.
+VOLTAGE_LIMIT_KEY = "lamp.voltage_limit_v"
 T = TypeVar("T")
-
-
-def plain(value: float) -> str:
-    """<NR2> as the manual writes it: a plain decimal with four digits, never `1e-05`, never `-0.0000`."""
-    return f"{round(value, 4) + 0.0:.4f}"
-
-
-def _error_entry(reply: str) -> tuple[int, str]:
-    """`SYSTem:ERRor?` answers `code,text`; code 0 means the queue is empty."""
-    code, comma, _ = reply.partition(",")
-    if not comma:
-        raise ValueError(reply)
-    return int(code), reply
-
-
-def _limit(reply: str) -> float:
-    """`SYSTem:LIMits:CURrent?`: the manual does not publish the reply's format; take the leading number
-    (a trailing `,ON` or `,1` is allowed)."""
-    return float(reply.partition(",")[0])
-
-
-# -- the command table (long forms, as the manual recommends) ------------------------------------
-IDENTITY = Query("*IDN?", str)
-CLEAR_STATUS = Setting("*CLS")
-REMOTE_CV = Setting("SYSTem:REMote:CV {}")          # REMote | LOCal: who programs the voltage
-REMOTE_CC = Setting("SYSTem:REMote:CC {}")          # ... and the current
-MAX_CURRENT = Query("SOURce:CURrent:MAXimum?", number, "A")
-MAX_VOLTAGE = Query("SOURce:VOLtage:MAXimum?", number, "V")
-CURRENT_LIMIT = Setting("SYSTem:LIMits:CURrent {},ON", "A")   # <NR2>,<boolean>: ON = limit enabled
-CURRENT_LIMIT_VALUE = Query("SYSTem:LIMits:CURrent?", _limit, "A")
-VOLTAGE = Setting("SOURce:VOLtage {}", "V")
-CURRENT = Setting("SOURce:CURrent {}", "A")
-CURRENT_SETPOINT = Query("SOURce:CURrent?", number, "A")
-OUTPUT = Setting("OUTPut {}")                        # ON | OFF
-#: `OUTPut?` answers 1/0 (ON/OFF on some firmware).
-OUTPUT_STATE = Query("OUTPut?", choice({"1": True, "ON": True, "0": False, "OFF": False}))
-MEASURED_CURRENT = Query("MEASure:CURrent?", number, "A")
-MEASURED_VOLTAGE = Query("MEASure:VOLtage?", number, "V")
-ERROR = Query("SYSTem:ERRor?", _error_entry)
-WATCHDOG_ARM = Setting("SYSTem:COMmunicate:WATchdog SET,{:d}", "ms")
-WATCHDOG_STOP = Setting("SYSTem:COMmunicate:WATchdog STOP")
-#: Remaining ms while armed (the query, a valid command, also restarts it); 0: it had expired; -1: off.
-WATCHDOG_STATE = Query("SYSTem:COMmunicate:WATchdog?", int, "ms")
 
 
 class DeltaSM(LineInstrument, LampSupply):
@@ -103,8 +68,9 @@ class DeltaSM(LineInstrument, LampSupply):
 
     `current_a` is the rig's lamp current, `current_limit_a` the limit set in
     the supply, `watchdog_s` the watchdog time, `ramp_s` the rig file's ramp
-    (the switch-off ramp is at most OFF_RAMP_MAX_S of it). `compliance_v`
-    replaces the supply's maximum voltage as the voltage setpoint.
+    (the switch-off ramp is at most OFF_RAMP_MAX_S of it). `voltage_limit_v`
+    (the rig file's `lamp.voltage_limit_v`, required) is the supply's voltage
+    limit and voltage setpoint.
 
     `events(kind, **fields)` hears of retries, reconnects, watchdog trouble and
     errors met while switching off; the runner points it at its log. Events of
@@ -114,24 +80,31 @@ class DeltaSM(LineInstrument, LampSupply):
 
     def __init__(self, url: str, *, clock: Clock, current_a: float, current_limit_a: float, watchdog_s: float,
                  ramp_s: float, name: str = "lamp", timeout_s: float = 1.0, retry: RetryPolicy = DEFAULT_RETRY,
-                 ramp_step_s: float = 0.1, compliance_v: float | None = None, open_port: PortOpener = open_pyserial):
+                 voltage_limit_v: float | None, ramp_step_s: float = 0.1, open_port: PortOpener = open_pyserial):
         if ramp_step_s <= 0:
             raise ValueError(f"ramp_step_s must be positive, got {ramp_step_s}")
         self.watchdog_ms = round(watchdog_s * 1000)
-        if not WATCHDOG_MIN_MS <= self.watchdog_ms <= WATCHDOG_MAX_MS:
+        if not scpi.WATCHDOG_MIN_MS <= self.watchdog_ms <= scpi.WATCHDOG_MAX_MS:
             raise ValueError(f"watchdog_s must be 0.02 … 10 s (the supply's range), got {watchdog_s}")
         if not 0 < current_a <= current_limit_a:
             raise DeviceError(name, f"lamp current {current_a:g} A exceeds the current limit {current_limit_a:g} A")
+        if voltage_limit_v is None or not voltage_limit_v > 0:
+            raise DeviceError(name, f"no lamp voltage limit: set {VOLTAGE_LIMIT_KEY} in the rig file (the lamp's "
+                                    "rated voltage plus a margin); rig never programs the supply's maximum voltage")
+        self.voltage_limit_v = voltage_limit_v
         super().__init__(url, name=name, clock=clock, timeout_s=timeout_s, retry=retry, open_port=open_port)
         self._held: list[tuple[str, dict[str, Any]]] = []
         self._answered_at_s = -math.inf          # rig time of the supply's last reply
         self._sink: EventSink | None = None
+        self._on = False                         # rig switched the output on (and not off since)
+        self._watchdog_off: str | None = None    # the supply's watchdog switched it off since: when
+        self._blocked_reported: str | None = None
         self.ramp_step_s = ramp_step_s
         self.ramp_s = ramp_s
         self.current_limit_a = current_limit_a
         self._once = replace(retry, attempts=1)
         try:
-            self._connect(current_a, compliance_v)
+            self._connect(current_a)
         except BaseException:
             self.link.close()
             raise
@@ -143,36 +116,43 @@ class DeltaSM(LineInstrument, LampSupply):
     def from_rig(cls, *, clock: Clock, settings: Any, address: str, timeout_s: float = 1.0) -> DeltaSM:
         """The rig-file contract (rig.drivers.registry): `settings` is the rig file's `lamp` section."""
         return cls(address, clock=clock, timeout_s=timeout_s, current_a=settings.current_a,
-                   current_limit_a=settings.current_limit_a, watchdog_s=settings.watchdog_s, ramp_s=settings.ramp_s)
+                   current_limit_a=settings.current_limit_a, watchdog_s=settings.watchdog_s, ramp_s=settings.ramp_s,
+                   voltage_limit_v=settings.voltage_limit_v)
 
-    def _connect(self, current_a: float, compliance_v: float | None) -> None:
-        identity = self.query(IDENTITY)
-        if MAKER not in identity.upper():
+    def _connect(self, current_a: float) -> None:
+        identity = self.query(scpi.IDENTITY)
+        if scpi.MAKER not in identity.upper():
             raise DeviceError(self.name, f"not a Delta Elektronika supply: '*IDN?' answered {identity!r}")
         self._identity = identity
         # Read before anything restarts it: 0 means it expired, so our previous session died with it armed.
-        if self.query(WATCHDOG_STATE) == 0:
+        if self.query(scpi.WATCHDOG_STATE) == 0:
             self.events("watchdog_expired_before_connect", device=self.name,
                         what="the supply's watchdog had switched the output off (a previous session ended "
                              "without closing)")
-        self._set(CLEAR_STATUS)                      # stale entries would be blamed on our first setting
-        self._set(REMOTE_CV, "REMote")
-        self._set(REMOTE_CC, "REMote")
-        self.max_current_a = self.query(MAX_CURRENT)
-        max_voltage_v = self.query(MAX_VOLTAGE)
+        self._set(scpi.CLEAR_STATUS)                      # stale entries would be blamed on our first setting
+        self._set(scpi.REMOTE_CV, "REMote")
+        self._set(scpi.REMOTE_CC, "REMote")
+        self.max_current_a = self.query(scpi.MAX_CURRENT)
+        max_voltage_v = self.query(scpi.MAX_VOLTAGE)
         for what, value, maximum, unit in (("current limit", self.current_limit_a, self.max_current_a, "A"),
                                            ("lamp current", current_a, self.max_current_a, "A"),
-                                           ("compliance", compliance_v or 0.0, max_voltage_v, "V")):
+                                           ("voltage limit", self.voltage_limit_v, max_voltage_v, "V")):
             if value > maximum:
                 raise DeviceError(self.name, f"{what} {value:g} {unit} exceeds the supply's maximum {maximum:g} {unit}")
-        self._set(CURRENT_LIMIT, plain(self.current_limit_a))
-        read_back = self.query(CURRENT_LIMIT_VALUE)
-        # The supply may round the limit to its programming step (~0.02 ‰ of its maximum); allow 1 ‰.
-        if abs(read_back - self.current_limit_a) > 0.5e-4 + 1e-3 * self.max_current_a:
-            raise DeviceError(self.name, f"current limit reads back as {read_back:g} A after setting "
-                                         f"{self.current_limit_a:g} A")
-        self._set(VOLTAGE, plain(max_voltage_v if compliance_v is None else compliance_v))
-        self._set(WATCHDOG_ARM, self.watchdog_ms)
+        self._set_limit(scpi.CURRENT_LIMIT, scpi.CURRENT_LIMIT_VALUE, self.current_limit_a, self.max_current_a)
+        self._set_limit(scpi.VOLTAGE_LIMIT, scpi.VOLTAGE_LIMIT_VALUE, self.voltage_limit_v, max_voltage_v)
+        self._set(scpi.VOLTAGE, plain(self.voltage_limit_v))
+        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms)
+
+    def _set_limit(self, setting: Setting, query: Query[float], value: float, maximum: float) -> None:
+        """Set an enabled limit and read it back: the supply may round it to its programming step (~0.02 ‰ of
+        its maximum); more than 1 ‰ off fails the connection."""
+        self._set(setting, plain(value))
+        read_back = self.query(query)
+        if abs(read_back - value) > 0.5e-4 + 1e-3 * maximum:
+            what = setting.template.split()[0].rpartition(":")[2].lower()
+            raise DeviceError(self.name, f"{what} limit reads back as {read_back:g} {setting.unit} after setting "
+                                         f"{value:g} {setting.unit}")
 
     # -- events, held until a sink is attached ---------------------------------------------------
     @property
@@ -201,23 +181,50 @@ class DeltaSM(LineInstrument, LampSupply):
         bound, what = min((self.current_limit_a, "the current limit"), (self.max_current_a, "the supply's maximum"))
         if not 0.0 <= current_a <= bound:
             raise DeviceError(self.name, f"current {current_a:g} A outside 0 … {bound:g} A ({what})")
-        start = min(self.query(CURRENT_SETPOINT), bound) if ramp_s > 0 else current_a
+        start = min(self.query(scpi.CURRENT_SETPOINT), bound) if ramp_s > 0 else current_a
         self._ramp(start, current_a, ramp_s)
 
     def set_output(self, on: bool) -> None:
         if on:
-            self._set(OUTPUT, "ON")
+            self._set(scpi.OUTPUT, "ON")
+            self._watchdog_off = self._blocked_reported = None
         else:
             self._switch_off()
+        self._on = on
 
     def output_is_on(self) -> bool:
-        return self.query(OUTPUT_STATE)
+        return self.query(scpi.OUTPUT_STATE)
 
     def measure_current_a(self) -> float:
-        return self.query(MEASURED_CURRENT)
+        return self.query(scpi.MEASURED_CURRENT)
 
     def measure_voltage_v(self) -> float:
-        return self.query(MEASURED_VOLTAGE)
+        return self.query(scpi.MEASURED_VOLTAGE)
+
+    def output_loss(self) -> OutputLoss | None:
+        """Why the output feeds no lamp though rig switched it on: status register A's blocking bits (with the
+        supply's warnings), else an output the supply's watchdog switched off (rig may switch it on again),
+        else an output switched off at the supply; None when the output is on and nothing blocks it (a burnt-out
+        filament). A new blocking cause is reported once as event `lamp_output_blocked`."""
+        if not self._on:
+            return None
+        status = self.query(scpi.STATUS_A)
+        blocked = [text for bit, text in scpi.BLOCKING_BITS.items() if status & bit]
+        if blocked:
+            warnings = self._drain(scpi.WARNING)
+            reason = "; ".join(blocked) + (f" (warnings: {'; '.join(warnings)})" if warnings else "")
+            if reason != self._blocked_reported:
+                self._blocked_reported = reason
+                self.events("lamp_output_blocked", device=self.name, status_a=status, reason=reason)
+            return OutputLoss(f"the supply blocks its output: {reason}", restart=False)
+        if self.query(scpi.OUTPUT_STATE):
+            return None
+        self._check_watchdog(self.query(scpi.WATCHDOG_STATE), None)      # an expiry no feed has seen yet
+        if self._watchdog_off is not None:
+            return OutputLoss(f"the supply's communication watchdog switched the output off ({self._watchdog_off})",
+                              restart=True)
+        return OutputLoss("the output was switched off at the supply, not by rig (front panel, web page or "
+                          "another client)", restart=False)
 
     def close(self) -> None:
         """Clean end: stop feeding, disarm the watchdog, hand the setpoints back to the front panel, close the
@@ -227,7 +234,7 @@ class DeltaSM(LineInstrument, LampSupply):
             self._cancel_feed()
             self._cancel_feed = None
         steps: list[tuple[Setting, tuple[object, ...]]] = [
-            (WATCHDOG_STOP, ()), (REMOTE_CV, ("LOCal",)), (REMOTE_CC, ("LOCal",))]
+            (scpi.WATCHDOG_STOP, ()), (scpi.REMOTE_CV, ("LOCal",)), (scpi.REMOTE_CC, ("LOCal",))]
         first: DeviceError | None = None
         try:
             for setting, args in steps:
@@ -250,7 +257,7 @@ class DeltaSM(LineInstrument, LampSupply):
 
     def _feed_watchdog(self) -> None:
         """Keep-alive (runs during sleeps): one query restarts the watchdog. If it had expired (0) or is off
-        (-1: the supply restarted), say so and re-arm it; the output stays off. A failed feed is reported
+        (-1: the supply restarted), say so and re-arm it (`_check_watchdog`). A failed feed is reported
         and swallowed, never retried here: if the link stays dead, the watchdog does its job.
 
         A feed due less than a feed period after the supply answered a command is skipped (the command
@@ -262,14 +269,22 @@ class DeltaSM(LineInstrument, LampSupply):
             return
         self._fed_last_time = True
         try:
-            remaining_ms = self.ask(WATCHDOG_STATE)
-            if remaining_ms <= 0:
-                self.events("watchdog_expired" if remaining_ms == 0 else "watchdog_off", device=self.name,
-                            what="re-arming; the supply's output was switched off" if remaining_ms == 0
-                            else "re-arming")
-                self._set(WATCHDOG_ARM, self.watchdog_ms, policy=self._once)
+            self._check_watchdog(self.ask(scpi.WATCHDOG_STATE), self._once)
         except DeviceError as exc:
             self.events("watchdog_feed_failed", device=self.name, error=str(exc))
+
+    def _check_watchdog(self, remaining_ms: int, policy: RetryPolicy | None) -> None:
+        """The watchdog's state as read (the query restarted it): if it had expired (0) or is off (-1: the
+        supply restarted), say so and re-arm it. An expiry with the lamp on is remembered: the output stays off
+        until rig switches it on again (`output_loss` tells the lamp suspender, whose pause re-warms the lamp)."""
+        if remaining_ms > 0:
+            return
+        if remaining_ms == 0 and self._on:
+            self._watchdog_off = f"no command reached it for {self.watchdog_ms / 1000:g} s, noticed at rig time " \
+                                 f"{self.clock.now():.1f} s"
+        self.events("watchdog_expired" if remaining_ms == 0 else "watchdog_off", device=self.name,
+                    what="re-arming; the supply's output was switched off" if remaining_ms == 0 else "re-arming")
+        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
 
     # -- exchanges -----------------------------------------------------------------------------
     def _ramp(self, start: float, target: float, ramp_s: float, policy: RetryPolicy | None = None,
@@ -277,8 +292,8 @@ class DeltaSM(LineInstrument, LampSupply):
         steps = max(1, math.ceil(round(ramp_s / self.ramp_step_s, 9)))
         for k in range(1, steps + 1):
             self.clock.sleep(ramp_s / steps)
-            self._set(CURRENT, plain(target if k == steps else start + (target - start) * k / steps), policy=policy,
-                      tolerate_errors=tolerate_errors)
+            self._set(scpi.CURRENT, plain(target if k == steps else start + (target - start) * k / steps),
+                      policy=policy, tolerate_errors=tolerate_errors)
 
     def _set(self, setting: Setting, *args: object, policy: RetryPolicy | None = None,
              tolerate_errors: bool = False) -> None:
@@ -308,25 +323,25 @@ class DeltaSM(LineInstrument, LampSupply):
         """To 0 A over min(ramp_s, OFF_RAMP_MAX_S), one attempt per exchange; skipped when the output is off
         already (no filament to spare) or the supply does not answer (no time to lose)."""
         ramp_s = min(self.ramp_s, OFF_RAMP_MAX_S)
-        if ramp_s <= 0 or not self.ask(OUTPUT_STATE):
+        if ramp_s <= 0 or not self.ask(scpi.OUTPUT_STATE):
             return
-        start = self.ask(CURRENT_SETPOINT)
+        start = self.ask(scpi.CURRENT_SETPOINT)
         if start > 0:
             self._ramp(start, 0.0, ramp_s, policy=self._once, tolerate_errors=True)
 
     def _output_off(self) -> None:
         """More attempts, and the read-backs decide, not the error queue: `OUTPut?` off and no current."""
-        line = OUTPUT.text("OFF")
+        line = scpi.OUTPUT.text("OFF")
         threshold_a = max(OFF_CURRENT_A, OFF_CURRENT_REL * self.current_limit_a)
 
         def exchange() -> None:
-            self.send(OUTPUT, "OFF")
+            self.send(scpi.OUTPUT, "OFF")
             errors = self._read_errors()
             if errors:
                 self.events("device_errors", device=self.name, what=line, errors=errors)
-            if self.ask(OUTPUT_STATE):
+            if self.ask(scpi.OUTPUT_STATE):
                 raise DeviceError(self.name, f"output still on after {line!r}", transient=True)
-            current_a = self.ask(MEASURED_CURRENT)
+            current_a = self.ask(scpi.MEASURED_CURRENT)
             if abs(current_a) >= threshold_a:
                 raise DeviceError(self.name, f"output still carries {current_a:g} A after {line!r} "
                                              f"(off means below {threshold_a:g} A)", transient=True)
@@ -334,10 +349,15 @@ class DeltaSM(LineInstrument, LampSupply):
 
     def _read_errors(self) -> list[str]:
         """Drain the error queue (at most its size); the entries other than `0,...`."""
-        errors = []
-        for _ in range(ERROR_QUEUE_SIZE):
-            code, entry = self.ask(ERROR)
+        return self._drain(scpi.ERROR, self.ask)
+
+    def _drain(self, query: Query[tuple[int, str]], ask: Callable[[Query[tuple[int, str]]], tuple[int, str]] | None
+               = None) -> list[str]:
+        """Read a queue (errors or warnings) until `0,None`, at most ERROR_QUEUE_SIZE entries."""
+        entries = []
+        for _ in range(scpi.ERROR_QUEUE_SIZE):
+            code, entry = (ask or self.query)(query)
             if code == 0:
                 break
-            errors.append(entry)
-        return errors
+            entries.append(entry)
+        return entries

@@ -119,6 +119,18 @@ class TwoAxisPositioner:
             axis.close()
 
 
+@dataclass(frozen=True)
+class OutputLoss:
+    """Why a lamp supply's output feeds no lamp though rig switched it on, as the supply tells it.
+
+    `restart`: rig may switch the output on again itself (the supply's own watchdog switched it off: nothing
+    holds it off any more); otherwise something outside rig holds it off (an open interlock, a remote
+    shut-down, a supply fault, an operator) and the run waits until that clears."""
+
+    reason: str
+    restart: bool
+
+
 class LampSupply(Device, abc.ABC):
     """DC supply of the halogen lamp, driven in constant-current mode."""
 
@@ -142,6 +154,12 @@ class LampSupply(Device, abc.ABC):
 
     @abc.abstractmethod
     def measure_voltage_v(self) -> float: ...
+
+    def output_loss(self) -> OutputLoss | None:
+        """Asked when the lamp carries too little current: whether the supply itself keeps the output from the
+        lamp, and why; None when it does not say so (then the lamp, e.g. a burn-out, is to blame). A supply that
+        cannot tell returns None."""
+        return None
 
 
 class IlluminanceMeter(Device, abc.ABC):

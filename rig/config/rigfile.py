@@ -16,7 +16,7 @@ rig.devices.check_devices before connecting.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
@@ -151,12 +151,22 @@ class LampConfig(StrictModel):
     #: rig is connected: if no command arrives for this long (a killed process, a dead PC, a cut cable),
     #: the supply switches its output off by itself. A keep-alive feeds it during long waits.
     watchdog_s: float = Field(5.0, ge=0.02, le=10.0)
+    #: The lamp's voltage limit: its rated voltage plus a stated margin (a 12 V lamp: e.g. 14 V, about +15 %).
+    #: Programmed as the supply's own voltage limit (SM15K `SYSTem:LIMits:VOLtage`) and as its voltage setpoint,
+    #: never the supply's maximum: an open filament or a loose socket sees at most this. Required with a real
+    #: delta-sm supply (load_rig_config, and the driver refuses to connect without it); the simulated rig states
+    #: it for its 12 V lamp (SIMULATED_LAMP_VOLTAGE_LIMIT_V).
+    voltage_limit_v: float | None = Field(None, gt=0, le=1000)
 
     @model_validator(mode="after")
     def _within_limit(self):
         if self.current_a > self.current_limit_a:
             raise ValueError(f"current_a ({self.current_a:g} A) exceeds current_limit_a ({self.current_limit_a:g} A)")
         return self
+
+
+#: The simulated lamp's voltage limit: its 12 V rating (rig.simulators.lamp) plus about 15 %.
+SIMULATED_LAMP_VOLTAGE_LIMIT_V = 14.0
 
 
 class MeterConfig(StrictModel):
@@ -267,6 +277,19 @@ class RigConfig(StrictModel):
                              "or neither")
         return self
 
+    @model_validator(mode="before")
+    @classmethod
+    def _simulated_lamp_voltage_limit(cls, data: Any) -> Any:
+        """The simulated rig's lamp is the simulated 12 V one: its voltage limit is stated unless the file does."""
+        if not isinstance(data, dict) or data.get("simulated", True) is not True:
+            return data
+        lamp = data.get("lamp", {})
+        if isinstance(lamp, LampConfig) and lamp.voltage_limit_v is None:
+            lamp = lamp.model_copy(update={"voltage_limit_v": SIMULATED_LAMP_VOLTAGE_LIMIT_V})
+        elif isinstance(lamp, dict) and lamp.get("voltage_limit_v") is None:
+            lamp = {**lamp, "voltage_limit_v": SIMULATED_LAMP_VOLTAGE_LIMIT_V}
+        return {**data, "lamp": lamp}
+
     @model_validator(mode="after")
     def _reading_within_watchdog(self):
         """A meter reading blocks for its integration and autoranging: the lamp's keep-alive cannot run
@@ -327,6 +350,11 @@ def load_rig_config(path: str | Path) -> RigConfig:
     connected."""
     config = parse_model(read_yaml(path, "rig", RigConfigError), RigConfig, source=path, what="rig configuration",
                          error=RigConfigError)
+    if config.lamp.voltage_limit_v is None and config.devices.lamp.driver == config.devices.lamp.BUILTIN:
+        # else the supply's maximum (500 V on an SM500) would be all that limits the lamp's voltage
+        raise RigConfigError(f"{path}: key 'lamp.voltage_limit_v' is required with a delta-sm lamp supply: the lamp's "
+                             "rated voltage plus a margin (e.g. 14 for a 12 V lamp); rig never programs the supply's "
+                             "maximum")
     folder = Path(path).parent
     update: dict[str, object] = {}
     for name in POSITIONER_AXES:

@@ -26,12 +26,14 @@ CONNECT = [("*IDN?", IDN),
            ("SOURce:VOLtage:MAXimum?", "500"),
            ("SYSTem:LIMits:CURrent 4.6000,ON", None), OK,
            ("SYSTem:LIMits:CURrent?", "4.6000"),
+           ("SYSTem:LIMits:VOLtage 14.0000,ON", None), OK,              # the lamp's limit, not the supply's 500 V
+           ("SYSTem:LIMits:VOLtage?", "14.0000"),
            ("SOURce:VOLtage 14.0000", None), OK,
            ("SYSTem:COMmunicate:WATchdog SET,1000", None), OK]
 CLOSE = [("SYSTem:COMmunicate:WATchdog STOP", None), OK,
          ("SYSTem:REMote:CV LOCal", None), OK,
          ("SYSTem:REMote:CC LOCal", None), OK]
-OPTIONS = dict(current_a=4.17, current_limit_a=4.6, watchdog_s=1.0, ramp_s=0.0, compliance_v=14.0)
+OPTIONS = dict(current_a=4.17, current_limit_a=4.6, watchdog_s=1.0, ramp_s=0.0, voltage_limit_v=14.0)
 
 
 def wire(exchanges: list[tuple[str, str | None]]) -> list[tuple[bytes, bytes | None]]:
@@ -78,11 +80,26 @@ def test_connect_arms_the_watchdog_output_measurements_and_close_disarms(scripte
     assert clock.now() == 0.0
 
 
-def test_without_compliance_the_voltage_setpoint_is_the_maximum(scripted):
-    connect = [(line, reply) for line, reply in CONNECT if line != "SOURce:VOLtage 14.0000"]
-    connect.insert(connect.index(("SYSTem:LIMits:CURrent?", "4.6000")) + 1, ("SOURce:VOLtage 500.0000", None))
-    with scripted([], connect=connect, compliance_v=None) as (lamp, _):
-        lamp.close()
+def test_without_a_voltage_limit_nothing_is_opened_and_the_key_is_named(expected_protocol, clock):
+    with expected_protocol([]) as replay:
+        with pytest.raises(DeviceError, match=r"lamp: no lamp voltage limit: set lamp.voltage_limit_v in the rig file"):
+            DeltaSM("socket://lamp:8462", clock=clock, open_port=replay.open_port,
+                    **(OPTIONS | dict(voltage_limit_v=None)))
+    assert replay.opens == 0
+
+
+def test_a_voltage_limit_above_the_supply_maximum_fails_before_any_setting(expected_protocol, clock):
+    with expected_protocol(wire(CONNECT[:10])) as replay:
+        with pytest.raises(DeviceError, match=r"lamp: voltage limit 600 V exceeds the supply's maximum 500 V"):
+            DeltaSM("socket://lamp:8462", clock=clock, open_port=replay.open_port,
+                    **(OPTIONS | dict(voltage_limit_v=600.0)))
+
+
+def test_a_voltage_limit_that_reads_back_differently_fails_the_connection(expected_protocol, clock):
+    script = wire(CONNECT[:15] + [("SYSTem:LIMits:VOLtage?", "500.0000")])
+    with expected_protocol(script) as replay:
+        with pytest.raises(DeviceError, match=r"voltage limit reads back as 500 V after setting 14 V"):
+            DeltaSM("socket://lamp:8462", clock=clock, open_port=replay.open_port, **OPTIONS)
 
 
 @pytest.mark.parametrize("value, text", [(4.17, "4.1700"), (1e-5, "0.0000"), (0.00005, "0.0001"),

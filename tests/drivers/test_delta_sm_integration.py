@@ -11,19 +11,20 @@ from itertools import pairwise
 
 import pytest
 
-from rig.config.rigfile import RigConfig
+from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
 from rig.core.errors import DeviceError
 from rig.drivers.delta_sm import DeltaSM
 from rig.drivers.retry import RetryPolicy
 from rig.physics.brdf_models import get_model
 from rig.simulators.delta_sm_peer import DeltaSMPeer
+from rig.simulators.delta_sm_scpi import header_matches
 from rig.simulators.world import SimWorld
 
 FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
 ATTEMPTS = 2
 WATCHDOG_S = 10.0
 #: The rig file's lamp settings the driver gets (the peer is a 15 V / 10 A supply).
-OPTIONS = dict(current_a=4.17, current_limit_a=9.0, watchdog_s=WATCHDOG_S, ramp_s=0.0)
+OPTIONS = dict(current_a=4.17, current_limit_a=9.0, watchdog_s=WATCHDOG_S, ramp_s=0.0, voltage_limit_v=14.0)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -64,7 +65,7 @@ def ask(peer: DeltaSMPeer, *lines: str) -> list[str | None]:
 def lamp(shared_lamp, peer, world, events):
     """The shared driver on a supply reset to its state after connect, with a new, cold lamp."""
     ask(peer, "*RST", "OUTP OFF", "*CLS", "SYST:REM:CV REM", "SYST:REM:CC REM", "SYST:LIM:CURR 9,ON",
-        f"SOUR:VOLT {peer.max_voltage_v}", "SYST:COMM:WAT STOP")
+        "SYST:LIM:VOLT 14,ON", "SOUR:VOLT 14", "SYST:COMM:WAT STOP")
     world.lamp.replace()
     shared_lamp.events = lambda kind, **fields: events.append((kind, fields))
     return shared_lamp
@@ -74,11 +75,11 @@ def test_peer_identity_remote_hand_over_and_close(lamp, peer, world):
     assert lamp.identity() == "DELTA ELEKTRONIKA BV,SM15-CP-10,000000000001,SIM_P0150,0"
     ask(peer, "SYST:REM:CV LOC", "SYST:REM:CC LOC", "SOUR:VOLT 0")
     second = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **OPTIONS)
-    assert peer.remote == {"CV": True, "CC": True}
-    assert peer.voltage_v == peer.max_voltage_v            # the current setpoint rules
+    assert (peer.remote["CV"], peer.remote["CC"]) == (True, True)
+    assert peer.voltage_v == 14.0 and peer.limits["V"] == (14.0, True)     # the lamp's limit, not the maximum
     second.set_output(True)
     second.close()
-    assert peer.remote == {"CV": False, "CC": False}       # front panel again...
+    assert (peer.remote["CV"], peer.remote["CC"]) == (False, False)       # front panel again...
     assert not peer.watchdog_armed                         # disarmed at a clean end
     assert peer.output_on                                  # ...and the output left as it was
 
@@ -177,7 +178,7 @@ def test_burn_out_shows_as_no_current_at_the_voltage_limit(lamp, peer, world):
     lamp.set_output(True)
     peer.inject("burnout")
     assert lamp.measure_current_a() == 0.0
-    assert lamp.measure_voltage_v() == peer.max_voltage_v
+    assert lamp.measure_voltage_v() == 14.0                # the lamp's voltage limit, not the supply's maximum
     assert world.illuminance_normal_lx() == 0.0
     world.lamp.replace()
     assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12)
@@ -222,9 +223,10 @@ def test_peer_queues_scpi_errors(lamp, peer):
     assert peer.current_a == 0.0
 
 
-def test_peer_error_queue_holds_ten_entries_and_reports_overflow(lamp, peer):
-    ask(peer, *["BOGUS"] * 12)
-    assert ask(peer, *["SYST:ERR?"] * 11) == ["-113,Undefined header"] * 9 + ["-350,Queue overflow", "0,None"]
+def test_peer_error_queue_holds_ten_entries_and_ignores_more(lamp, peer):
+    """Manual §5.6.7: "The error queue can contain maximum 10 errors; more error messages are ignored."""
+    ask(peer, *["BOGUS"] * 11, "SOUR:CURR abc")
+    assert ask(peer, *["SYST:ERR?"] * 11) == ["-113,Undefined header"] * 10 + ["0,None"]
     peer.inject("error_queue")
     ask(peer, "*CLS")
     assert ask(peer, "SYST:ERR?") == ["0,None"]
@@ -304,3 +306,50 @@ def test_the_peer_passes_the_drivers_replays():
                        firmware=firmware, max_voltage_v=500.0, max_current_a=90.0)
     for line, reply in CONNECT + CLOSE:
         assert peer.answer(line.encode("ascii")) == reply, line
+
+
+# -- a large supply: the lamp's voltage limit, never the supply's maximum ----------------------------------------
+def numbers_sent(peer: DeltaSMPeer, header: tuple[str, ...]) -> list[float]:
+    """The values of every `header <value>[,...]` line the peer received (any case, long or short form)."""
+    values = []
+    for line in peer.received:
+        head, _, param = line.strip().partition(" ")
+        if param and header_matches(head.removeprefix(":").split(":"), header):
+            values.append(float(param.partition(",")[0]))
+    return values
+
+
+def test_on_a_500_v_supply_no_voltage_above_the_lamps_limit_is_ever_sent(world):
+    rig = RigConfig.model_validate({"simulated": False, "lamp": {"voltage_limit_v": 14.0, "ramp_s": 0.5},
+                                    "devices": {"lamp": {"address": "socket://127.0.0.1:1"}}})
+    with DeltaSMPeer(world, model="SM500-CP-90") as big:
+        lamp = DeltaSM.from_rig(clock=world.clock, settings=rig.lamp, address=big.url, timeout_s=FAST)
+        try:
+            lamp.set_current(0.0)
+            lamp.set_output(True)
+            lamp.set_current(rig.lamp.current_a, ramp_s=rig.lamp.ramp_s)
+            world.lamp.burn_out()                                  # an open filament sees the voltage setpoint
+            assert lamp.measure_voltage_v() == pytest.approx(14.0, abs=1e-9)
+            lamp.set_output(False)
+        finally:
+            lamp.close()
+            world.lamp.replace()
+        assert big.max_voltage_v == 500.0 and big.limits["V"] == (14.0, True)
+        sent = numbers_sent(big, ("SOURce", "VOLtage")) + numbers_sent(big, ("SYSTem", "LIMits", "VOLtage"))
+        assert sent and max(sent) <= 14.0
+
+
+def test_without_the_voltage_limit_a_real_rig_file_is_refused_naming_the_key(tmp_path):
+    path = tmp_path / "lab.yaml"
+    path.write_text("simulated: false\nlamp: {current_a: 4.17}\ndevices: {lamp: {address: 'socket://10.0.0.5:8462'}}\n")
+    with pytest.raises(RigConfigError, match=r"key 'lamp.voltage_limit_v' is required with a delta-sm lamp supply"):
+        load_rig_config(path)
+    assert RigConfig().lamp.voltage_limit_v == 14.0                # the simulated 12 V lamp's, stated
+
+
+def test_without_the_voltage_limit_the_driver_refuses_to_connect(world):
+    settings = RigConfig().lamp.model_copy(update={"voltage_limit_v": None})
+    with DeltaSMPeer(world, model="SM500-CP-90") as big:
+        with pytest.raises(DeviceError, match=r"set lamp.voltage_limit_v in the rig file"):
+            DeltaSM.from_rig(clock=world.clock, settings=settings, address=big.url, timeout_s=FAST)
+        assert list(big.received) == []                            # nothing was sent

@@ -100,5 +100,5 @@ def test_rst_per_manual_table_5_1(peer):
     ask(peer, "SYST:REM:CV REM", "SYST:REM:CC REM", "SOUR:VOLT 14", "SOUR:CURR 4", "OUTP ON",
         "SYST:REM:CV LOC", "SYST:REM:CC:STAtus LOC")
     ask(peer, "*RST")
-    assert (peer.voltage_v, peer.current_a, peer.remote) == (0.0, 0.0, {"CV": True, "CC": True})
+    assert (peer.voltage_v, peer.current_a, peer.remote) == (0.0, 0.0, {"CV": True, "CC": True, "CP": True})
     assert peer.output_on                                  # not in the manual's table: left as it was
