@@ -5,8 +5,11 @@ follower keeps an offset per file and parses only the bytes appended since its l
 to the last newline; a last line without its newline (a write in progress, or a kill) is left
 for the next look, as every reader of the folder does. dataset.json and skipped.csv are replaced
 atomically (rename), so they are read whole when their size or modification time changes. A
-file that shrank or changed inode under the follower (the folder was removed and made again)
-makes it start over, with a new `generation`.
+folder or file that is not the one read so far (another device or inode, a file shorter than read or
+with other first bytes, a manifest of another run: the folder was removed and made again, or replaced
+by a copy that reuses the inode numbers) makes it start over, with a new `generation`; two runs are
+never mixed. Whatever the files hold, a line that cannot be followed is skipped and reported, and a
+file that cannot be read (rig.monitor.files: a FIFO in its place, too large) is a warning, never a hang.
 
 What the page needs grows without bound on an overnight run (points, E⊥ readings, events), so
 it goes into an append-only list of changes that a viewer asks for from where it stopped
@@ -18,20 +21,25 @@ whole. Opening the files read-only takes no lock: the writer's `flock` on `.lock
 from __future__ import annotations
 
 import csv
-import json
 import os
-import socket
+import stat
 import uuid
-from collections import Counter
-from dataclasses import dataclass
+from collections import Counter, deque
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from rig.data.dataset_format import DatasetError
-from rig.data.dataset_reader import read_manifest
-from rig.data.folderlock import LOCK_NAME
-from rig.monitor.records import PlanSummary, finite_float, plan_of, point_record, summarize_event
+from rig.monitor import files
+from rig.monitor.records import (
+    PlanSummary,
+    finite_float,
+    plan_of,
+    point_record,
+    short_text,
+    summarize_event,
+    utc_seconds,
+)
 from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
 from rig.planning.points import SKIP_REASONS, describe_reason
 
@@ -44,73 +52,25 @@ PHASE_AFTER = {"devices": "starting", "resume": "starting", "lamp_on": "warm-up"
 PHASE_OF_STATUS = {"complete": "finished", "interrupted": "interrupted", "failed": "failed"}
 #: Events not shown in the list of recent events: one per point, the points are plotted instead.
 QUIET_EVENTS = frozenset({"point_pending"})
+#: Messages about skipped lines kept for the page (the count of all is `bad_lines`).
+WARNINGS_KEPT = 10
+#: Most points a manifest's counts may name (a paper campaign plans a few thousand).
+MAX_POINTS = 10 ** 9
 
 
-@dataclass
-class _Tail:
-    """An append-only file read from where the previous read stopped, complete lines only."""
-
-    path: Path
-    offset: int = 0
-    inode: int | None = None
-
-    def new_lines(self) -> list[str]:
-        """Lines completed since the last call ([] while the file is absent); _Replaced if it shrank or is
-        another file now."""
-        try:
-            with open(self.path, "rb") as fh:
-                st = os.fstat(fh.fileno())
-                if (self.inode is not None and st.st_ino != self.inode) or st.st_size < self.offset:
-                    raise _Replaced(self.path)
-                self.inode = st.st_ino
-                fh.seek(self.offset)
-                data = fh.read()
-        except FileNotFoundError:
-            if self.inode is not None:
-                raise _Replaced(self.path) from None
-            return []
-        keep = data.rfind(b"\n") + 1
-        self.offset += keep
-        return data[:keep].decode("utf-8", "replace").splitlines()
+class BadLine(Exception):
+    """A line of brdf.csv or events.jsonl that cannot be followed: skipped and reported, with this reason."""
 
 
-class _Replaced(Exception):
-    """A followed file is not the one read so far: start over."""
-
-
-def _utc_s(text: Any) -> float | None:
-    """An ISO 8601 UTC time as POSIX seconds; None if it is not one."""
-    try:
-        return datetime.fromisoformat(str(text)).timestamp()
-    except ValueError:
-        return None
+def _text(value: Any) -> str | None:
+    """A manifest's text field as the page shows it: None unless it is text."""
+    return short_text(value) if isinstance(value, str) else None
 
 
 def _section(manifest: dict[str, Any], key: str) -> dict[str, Any]:
     """A section of the manifest; {} where it is absent or not an object."""
     value = manifest.get(key)
     return value if isinstance(value, dict) else {}
-
-
-def writer_alive(folder: Path) -> bool | None:
-    """Whether the process named in `.lock` (rig/data/folderlock.py: "pid N host H" while a writer holds it,
-    left there by a writer that was killed) is running; None when it cannot be told (no name in the file,
-    another host)."""
-    try:
-        text = (folder / LOCK_NAME).read_text(encoding="utf-8", errors="replace").split()
-    except OSError:
-        return None
-    if len(text) < 4 or text[0] != "pid" or text[2] != "host" or not text[1].isdigit():
-        return None
-    if text[3] != socket.gethostname():
-        return None
-    try:
-        os.kill(int(text[1]), 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True          # someone else's process: it exists
-    return True
 
 
 class FolderFollower:
@@ -125,7 +85,9 @@ class FolderFollower:
 
     def _reset(self) -> None:
         self.generation = uuid.uuid4().hex[:12]
-        self.rows, self.events = _Tail(self.folder / "brdf.csv"), _Tail(self.folder / "events.jsonl")
+        self.rows, self.events = files.Tail(self.folder / "brdf.csv"), files.Tail(self.folder / "events.jsonl")
+        self._identity: tuple[int, int] | None = None        # the folder's (device, inode)
+        self._run: str | None = None                          # the manifest's `created_utc`: which run
         self.header: list[str] | None = None
         self.changes: list[dict[str, Any]] = []
         self.manifest: dict[str, Any] = {}
@@ -150,25 +112,49 @@ class FolderFollower:
         self.rate_origin: tuple[float, float] | None = None   # (wall s, rig s) then
         self.rate_latest: tuple[float, float] | None = None
         self.bad_lines = 0
+        self.warnings: deque[str] = deque(maxlen=WARNINGS_KEPT)
+        self.problems: dict[str, str] = {}            # file name → why it cannot be read now
 
     # -- reading ---------------------------------------------------------------------------------
     def update(self) -> None:
         """Read what was written since the last call."""
         try:
             self._update()
-        except _Replaced:
+        except files.Replaced:
             self._reset()
             self._update()
 
     def _update(self) -> None:
-        if not self.folder.is_dir():
+        try:
+            st = os.stat(self.folder)
+        except OSError:
             return
+        if not stat.S_ISDIR(st.st_mode):
+            return
+        if self._identity not in (None, (st.st_dev, st.st_ino)):
+            raise files.Replaced(self.folder)
+        self._identity = st.st_dev, st.st_ino
         self._read_manifest()
         self._read_skipped()
-        for line in self.events.new_lines():
-            self._event_line(line)
-        for line in self.rows.new_lines():
-            self._row_line(line)
+        self._follow(self.events, self._event_line)
+        self._follow(self.rows, self._row_line)
+
+    def _follow(self, tail: files.Tail, follow: Callable[[str], None]) -> None:
+        """The new lines of one file, each followed or skipped with a warning naming the file and line."""
+        try:
+            lines = tail.new_lines()
+        except files.FollowError as exc:
+            self.problems[tail.path.name] = str(exc)
+            return
+        self.problems.pop(tail.path.name, None)
+        for number, data in lines:
+            try:
+                if data is None:
+                    raise BadLine(f"longer than {files.MAX_LINE_BYTES} bytes")
+                follow(data.decode("utf-8", "replace").removesuffix("\r"))
+            except BadLine as exc:
+                self.bad_lines += 1
+                self.warnings.append(f"{tail.path.name} line {number}: {exc}; skipped")
 
     @staticmethod
     def _stamp(path: Path) -> tuple[int, int, int] | None:
@@ -179,15 +165,23 @@ class FolderFollower:
         return st.st_ino, st.st_size, st.st_mtime_ns
 
     def _read_manifest(self) -> None:
+        """dataset.json when it changed; one of another run (its `created_utc`) means the folder was replaced."""
         stamp = self._stamp(self.folder / "dataset.json")
         if stamp is None or stamp == self._manifest_stamp:
             return
         self._manifest_stamp = stamp
         try:
-            self.manifest, self.manifest_error = read_manifest(self.folder, purpose="cannot follow it"), None
-        except DatasetError as exc:
-            self.manifest_error = str(exc)
+            data = files.read_whole(self.folder / "dataset.json", files.WHOLE_FILE_BYTES)
+            if data is None:
+                return
+            manifest = files.parse_manifest(data)
+        except files.FollowError as exc:
+            self.manifest_error = f"{self.folder / 'dataset.json'}: {str(exc).partition(': ')[2]}; cannot follow it"
             return
+        run = _text(manifest.get("created_utc"))
+        if self._run is not None and run != self._run:
+            raise files.Replaced(self.folder / "dataset.json")
+        self.manifest, self.manifest_error, self._run = manifest, None, run
         if self.plan is None and "campaign" in self.manifest:
             self.plan = plan_of(self.manifest)
 
@@ -197,18 +191,27 @@ class FolderFollower:
         if stamp is None or stamp == self._skipped_stamp:
             return
         self._skipped_stamp = stamp
-        data = path.read_bytes()
-        text = data[:data.rfind(b"\n") + 1].decode("utf-8", "replace")
-        self.skipped = Counter(r.get("reason") or "?" for r in csv.DictReader(text.splitlines()))
+        try:
+            data = files.read_whole(path, files.WHOLE_FILE_BYTES) or b""
+            text = data[:data.rfind(b"\n") + 1].decode("utf-8", "replace")
+            self.skipped = Counter(short_text(r.get("reason") or "?", 80) for r in csv.DictReader(text.split("\n")))
+        except csv.Error as exc:
+            self.problems[path.name] = f"{path.name}: not CSV ({exc}); skipped points not counted"
+        except files.FollowError as exc:
+            self.problems[path.name] = str(exc)
+        else:
+            self.problems.pop(path.name, None)
 
     def _row_line(self, line: str) -> None:
-        values = next(csv.reader([line]), [])
+        try:
+            values = next(csv.reader([line]), [])
+        except csv.Error as exc:
+            raise BadLine(f"not a CSV row ({exc})") from None
         if self.header is None:
             self.header = values
             return
         if len(values) != len(self.header):
-            self.bad_lines += 1
-            return
+            raise BadLine(f"{len(values)} fields, the header has {len(self.header)}")
         self._keep(dict(zip(self.header, values)), final=True)
 
     def _keep(self, row: dict[str, Any], *, final: bool) -> None:
@@ -228,20 +231,26 @@ class FolderFollower:
         self._at(row.get("time_utc"), finite_float(row.get("rig_time_s")))
 
     def _event_line(self, line: str) -> None:
+        """One event: checked whole before anything of it is kept, so that a bad line changes nothing."""
         try:
-            event = json.loads(line)
-        except (json.JSONDecodeError, RecursionError):
-            event = None
+            event = files.strict_json(line)
+        except ValueError as exc:
+            raise BadLine(f"not valid JSON ({short_text(str(exc).splitlines()[0], 120)})") from None
         if not isinstance(event, dict):
-            self.bad_lines += 1
-            return
-        kind = str(event.get("event", "?"))
+            raise BadLine(f"a JSON {type(event).__name__}, not an event object")
+        kind = short_text(event["event"], 60) if isinstance(event.get("event"), str) else "?"
+        row, ids = event.get("row"), event.get("point_ids")
+        if kind == "point_pending" and isinstance(row, dict) and not isinstance(row.get("point_id"), str):
+            raise BadLine("point_pending: its row's point_id is not text")
+        if kind == "points_discarded" and isinstance(ids, list) and not all(isinstance(p, str) for p in ids):
+            raise BadLine("points_discarded: a point id that is not text")
         rig_s = finite_float(event.get("rig_time_s"))
-        if kind == "point_pending" and isinstance(event.get("row"), dict):
-            if event["row"].get("point_id") not in self.final:
-                self._keep(event["row"], final=False)
-        elif kind == "points_discarded" and isinstance(event.get("point_ids"), list):
-            for pid in event["point_ids"]:
+        summary = summarize_event(event) if kind not in QUIET_EVENTS else ""
+        if kind == "point_pending" and isinstance(row, dict):
+            if row["point_id"] not in self.final:
+                self._keep(row, final=False)
+        elif kind == "points_discarded" and isinstance(ids, list):
+            for pid in ids:
                 if pid in self.pending:
                     self.pending.discard(pid)
                     self.budget_rows.pop(pid, None)
@@ -258,14 +267,15 @@ class FolderFollower:
         self._at(event.get("time_utc"), rig_s)
         self._phase(kind, event, rig_s)
         if kind not in QUIET_EVENTS:
-            self.changes.append({"k": "ev", "utc": event.get("time_utc"), "t": rig_s, "event": kind,
-                                 "text": summarize_event(event)})
+            utc = event.get("time_utc")
+            self.changes.append({"k": "ev", "utc": utc if utc_seconds(utc) is not None else None, "t": rig_s,
+                                 "event": kind, "text": summary})
 
     def _at(self, time_utc: Any, rig_s: float | None) -> None:
         """The run's latest time, wall and rig."""
-        wall = _utc_s(time_utc)
+        wall = utc_seconds(time_utc)
         if wall is not None:
-            self.last_utc = str(time_utc)
+            self.last_utc = time_utc
         if rig_s is not None:
             self.rig_time_s = rig_s if self.rig_time_s is None else max(self.rig_time_s, rig_s)
             if wall is not None and self.phase == "measuring":
@@ -286,9 +296,10 @@ class FolderFollower:
             phase = "aligning"
         was_measuring = self.phase == "measuring"
         self.phase = phase
-        self.detail = {"paused": f"{event.get('device', '?')}: {event.get('reason', '')}",
-                       "stopping": str(event.get("reason", "")), "interrupted": str(event.get("reason", "")),
-                       "failed": str(event.get("error", "")),
+        self.detail = {"paused": short_text(f"{event.get('device', '?')}: {event.get('reason', '')}"),
+                       "stopping": short_text(str(event.get("reason", ""))),
+                       "interrupted": short_text(str(event.get("reason", ""))),
+                       "failed": short_text(str(event.get("error", ""))),
                        "warm-up": "lamp switched on" if kind == "lamp_on" else ""}.get(phase, "")
         if rig_s is None:
             return
@@ -321,16 +332,17 @@ class FolderFollower:
         status = self.manifest.get("status")
         if status in PHASE_OF_STATUS:
             detail = self.manifest.get("error") if status == "failed" else self.detail
-            return PHASE_OF_STATUS[status], str(detail or "")
-        if status == "running" and writer_alive(self.folder) is False:
+            return PHASE_OF_STATUS[status], short_text(str(detail or ""))
+        if status == "running" and files.writer_alive(self.folder) is False:
             return "abandoned", ("the writing process is gone without closing the folder (killed?); "
                                  "`rig run --resume` continues it")
         return self.phase, self.detail
 
     def _to_measure(self) -> int | None:
-        counts = self.manifest.get("counts") or {}
-        if isinstance(counts.get("planned"), int) and isinstance(counts.get("skipped"), int):
-            return counts["planned"] - counts["skipped"]
+        counts = _section(self.manifest, "counts")
+        planned, skipped = counts.get("planned"), counts.get("skipped")
+        if all(type(c) is int and 0 <= c <= MAX_POINTS for c in (planned, skipped)):
+            return planned - skipped
         return self.plan.to_measure + self.batch_points if self.plan and self.plan.to_measure is not None else None
 
     def _eta(self, phase: str, to_measure: int | None) -> dict[str, float | None]:
@@ -349,12 +361,13 @@ class FolderFollower:
         if self.rate_origin and self.rate_latest and self.rate_latest[1] > self.rate_origin[1]:
             per = (self.rate_latest[0] - self.rate_origin[0]) / (self.rate_latest[1] - self.rate_origin[1])
             eta["wall_per_rig"], eta["wall_s"] = per, left_s * per
-        return eta
+        return {k: finite_float(v) for k, v in eta.items()}       # absurd times written: no ETA, never inf
 
     def budget(self) -> list[dict]:
         """The uncertainty budget of the points so far (rig.physics.budget, as the manifest has it at the end)."""
         if self._budget is None:
-            self._budget = campaign_budget(list(self.budget_rows.values()), BUDGET_COLUMNS)
+            self._budget = [{k: finite_float(v) if isinstance(v, float) else v for k, v in component.items()}
+                            for component in campaign_budget(list(self.budget_rows.values()), BUDGET_COLUMNS)]
         return self._budget
 
     def snapshot(self, since: int = 0) -> dict[str, Any]:
@@ -367,11 +380,12 @@ class FolderFollower:
             "folder": str(self.folder), "generation": self.generation, "next": len(self.changes),
             "changes": self.changes[max(since, 0):],
             "now_utc": datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z"),
-            "last_utc": self.last_utc, "created_utc": m.get("created_utc"), "finished_utc": m.get("finished_utc"),
-            "campaign": _section(m, "campaign").get("name"), "sample": sample.get("id"),
-            "sample_description": sample.get("description"), "rig": rig.get("name"),
-            "simulated": rig.get("simulated"), "software": _section(m, "software").get("version"),
-            "status": m.get("status"), "phase": phase, "detail": detail,
+            "last_utc": self.last_utc, "created_utc": _text(m.get("created_utc")),
+            "finished_utc": _text(m.get("finished_utc")), "campaign": _text(_section(m, "campaign").get("name")),
+            "sample": _text(sample.get("id")), "sample_description": _text(sample.get("description")),
+            "rig": _text(rig.get("name")), "simulated": rig.get("simulated") if rig.get("simulated") in (True, False)
+            else None, "software": _text(_section(m, "software").get("version")),
+            "status": _text(m.get("status")), "phase": phase, "detail": detail,
             "progress": {"done": self.done, "to_measure": to_measure, "in_csv": len(self.final),
                          "pending": len(self.pending - self.final), "skipped": sum(self.skipped.values())},
             "rig_time_s": self.rig_time_s, "eta": self._eta(phase, to_measure),
@@ -379,4 +393,5 @@ class FolderFollower:
             "skipped": [{"reason": r, "count": n, "meaning": describe_reason(r) if r.partition(":")[0] in SKIP_REASONS
                          else ""} for r, n in self.skipped.most_common()],
             "flags": dict(self.flags.most_common()), "budget": self.budget(), "bad_lines": self.bad_lines,
+            "warnings": [*self.problems.values(), *self.warnings],
         }

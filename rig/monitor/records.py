@@ -7,6 +7,7 @@ import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -20,15 +21,32 @@ from rig.planning.plan import build_plan
 SUMMARY_SKIP = frozenset({"event", "time_utc", "rig_time_s", "row", "identities", "readings", "point_ids"})
 #: Longest summary of one event, characters.
 SUMMARY_CHARS = 240
+#: Longest `time_utc` taken as a time (ISO 8601 with microseconds and offset is 32 characters).
+UTC_CHARS = 40
 
 
 def finite_float(value: Any) -> float | None:
     """A cell or JSON value as a finite float; None where empty or not a number."""
     try:
         x = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):            # OverflowError: an integer beyond a float
         return None
     return x if math.isfinite(x) else None
+
+
+def utc_seconds(text: Any) -> float | None:
+    """An ISO 8601 UTC time as POSIX seconds; None if it is not one."""
+    if not isinstance(text, str) or len(text) > UTC_CHARS:
+        return None
+    try:
+        return datetime.fromisoformat(text).timestamp()
+    except (ValueError, OverflowError):
+        return None
+
+
+def short_text(text: str, limit: int = SUMMARY_CHARS) -> str:
+    """`text` cut to `limit` characters, with an ellipsis where it was cut."""
+    return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 def point_record(row: dict[str, Any]) -> dict[str, Any]:
@@ -60,8 +78,7 @@ def summarize_event(event: dict[str, Any]) -> str:
         elif isinstance(value, (dict, list)):
             value = json.dumps(value, separators=(",", ":"))
         parts.append(f"{key}={value}")
-    text = " ".join(parts)
-    return text if len(text) <= SUMMARY_CHARS else text[:SUMMARY_CHARS - 1] + "…"
+    return short_text(" ".join(parts))
 
 
 @dataclass
