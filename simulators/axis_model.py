@@ -95,6 +95,14 @@ class AxisModel:
         return position_at(m.start_deg, m.target_deg, self.world.clock.now() - m.t0, m.speed_deg_s,
                            m.accel_deg_s2)
 
+    def command_speed_deg_s(self) -> float:
+        """Signed speed of the command position now (what a drive reports as its feedback speed)."""
+        m, h = self._move, 1e-4
+        elapsed = self.world.clock.now() - m.t0
+        return (position_at(m.start_deg, m.target_deg, elapsed + h, m.speed_deg_s, m.accel_deg_s2)
+                - position_at(m.start_deg, m.target_deg, max(elapsed - h, 0.0), m.speed_deg_s, m.accel_deg_s2)
+                ) / (elapsed + h - max(elapsed - h, 0.0))
+
     def encoder_position_deg(self) -> float:
         """What the load-side encoder reads (before quantisation to steps)."""
         m = self._move

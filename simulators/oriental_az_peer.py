@@ -23,9 +23,18 @@ Served per drive, every value an int32 pair, upper word first:
 - 0x007E-7F driver output: READY (bit 5), ALM-A (7), SYS-BSY (8, never set here),
   MOVE (13), IN-POS (14: a positioning operation has ended in position; off at power-on,
   as in the captured status reply, and after STOP). 0x0080-81 present alarm code.
-- 0x00CC-CD feedback position [steps] (the feedback speeds at 0x00CE/0x00D0 are not served).
+- 0x00CC-CD feedback position [steps], 0x00CE-CF feedback speed [r/min of the motor shaft, at the
+  factory resolution of 1000 steps per revolution], 0x00D0-D1 feedback speed [Hz]; signed. This
+  model's feedback speed is that of the command profile.
 - 0x0180-81 alarm reset: executed when written 1 after 0 (the maintenance command).
+- 0x1800-0x57FF operation data No. 0-255, 0x40 registers (32 pairs) each: type, position, speed,
+  starting and stopping rates, current, ... from +0x00, +0x02, ... (the maker's FAQ 0331 writes No. 0's
+  position at 0x1802). Stored as written and read back; running them (START) is not modelled.
 Any other address answers exception 02, as does writing a read-only register.
+
+A unit that is not on the link never answers on RTU (an RS-485 bus is silent), nor through a
+transparent Modbus/TCP converter; with `gateway=True` (Modbus/TCP through a gateway to the bus)
+the gateway answers exception 0Bh (gateway target device failed to respond) for it.
 
 Faults are injected on demand, per request, optionally only for one drive: "no_reply" and
 "disconnect" (the request is never executed nor answered), "exception" (04, device
@@ -44,7 +53,8 @@ from typing import Self, cast
 from pymodbus import FramerType
 from pymodbus.client.mixin import ModbusClientMixin
 from pymodbus.constants import ExcCodes
-from pymodbus.pdu import ModbusPDU
+from pymodbus.datastore import ModbusServerContext
+from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.base import ModbusBaseServer
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -57,13 +67,17 @@ from rig.simulators.world import SimWorld
 DIRECT_DATA = 0x0058          # 9 pairs: No., type, position, speed, accel, decel, current, trigger, forwarding
 TYPE, POSITION, SPEED, ACCEL, DECEL, CURRENT, TRIGGER, FORWARDING = range(1, 9)     # pair index in the block
 INPUT_AUTO_OFF, INPUT, OUTPUT, PRESENT_ALARM = 0x0078, 0x007C, 0x007E, 0x0080
-FEEDBACK_POSITION = 0x00CC    # steps
+FEEDBACK = 0x00CC             # 3 pairs: position [steps], speed [r/min], speed [Hz]
+STEPS_PER_MOTOR_REV = 1000    # the AZ's factory resolution: what the r/min of the feedback speed is of
+OPERATION_DATA, OPERATION_DATA_STRIDE, OPERATION_DATA_COUNT = 0x1800, 0x40, 256
 ALARM_RESET = 0x0180
 ZHOME, STOP, ALM_RST = 1 << 4, 1 << 5, 1 << 7
 UNMODELLED_INPUTS = 1 << 3 | 1 << 6 | 1 << 14 | 1 << 15        # START, FREE, FW-POS, RV-POS
 READY, ALM_A, MOVE, IN_POS = 1 << 5, 1 << 7, 1 << 13, 1 << 14
 #: Direct data at power-on: No. 0, absolute, position 0, 1 kHz, 1 kHz/s, 1 kHz/s, 100 %, trigger 0.
 DIRECT_DEFAULTS = (0, 1, 0, 1000, 1000, 1000, 1000, 0, 0)
+#: Each operation data No. at power-on (the peer's choice): incremental, 0 steps, 1 kHz, 1 kHz/s, 1 kHz/s, 100 %.
+OPERATION_DEFAULTS = (2, 0, 1000, 1000, 1000, 1000) + (0,) * (OPERATION_DATA_STRIDE // 2 - 6)
 
 
 def pairs(*values: int) -> list[int]:
@@ -88,6 +102,17 @@ class _Fault:
     device_id: int | None          # only requests to this drive; None: any request
 
 
+class _NoResponseFromTarget(ModbusPDU):
+    """A request for a unit absent from the bus behind a gateway: the gateway answers it, with exception 0Bh."""
+
+    def __init__(self, request: ModbusPDU):
+        super().__init__(dev_id=request.dev_id, transaction_id=request.transaction_id)
+        self.function_code = request.function_code
+
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
+        return ExceptionResponse(self.function_code, ExcCodes.GATEWAY_NO_RESPONSE)
+
+
 class _Drive:
     """One AZ drive: its AxisModel and the input and alarm-reset levels that edges are taken from."""
 
@@ -106,8 +131,10 @@ class _Drive:
                   | (MOVE if s.busy else 0) | (IN_POS if s.in_position and self.positioned else 0))
         return pairs(status, s.alarm)
 
-    def feedback_position(self) -> list[int]:
-        return pairs(self.model.state().encoder_steps)
+    def feedback(self) -> list[int]:
+        """0x00CC-0x00D1: feedback position, speed in r/min and in Hz, as they read now."""
+        hz = self.model.command_speed_deg_s() * self.steps_per_degree
+        return pairs(self.model.state().encoder_steps, round(hz * 60 / STEPS_PER_MOTOR_REV), round(hz))
 
     def inputs_on(self, rising: int) -> ExcCodes | None:
         if rising & UNMODELLED_INPUTS:
@@ -142,13 +169,17 @@ class OrientalAZPeer:
     """AZ drives, one per (name, axis section), at device ids `device_ids`, on one Modbus/TCP or RTU link."""
 
     def __init__(self, world: SimWorld, axes: list[tuple[str, AxisConfig]], *, device_ids: Sequence[int] = (1, 2),
-                 steps_per_degree: float | Sequence[float] = 1000.0, framer: str = "tcp", backlash_deg: float = 0.002):
+                 steps_per_degree: float | Sequence[float] = 1000.0, framer: str = "tcp", gateway: bool = False,
+                 backlash_deg: float = 0.002):
         if framer not in ("tcp", "rtu"):
             raise ValueError(f"framer {framer!r}: use 'tcp' or 'rtu'")
+        if gateway and framer != "tcp":
+            raise ValueError("gateway=True is a Modbus/TCP gateway: use framer 'tcp'")
         steps = ([float(steps_per_degree)] * len(axes) if isinstance(steps_per_degree, int | float)
                  else list(steps_per_degree))
         self.world = world
         self.framer = framer
+        self.gateway = gateway
         self.drives = {device_id: _Drive(AxisModel(world, name, cfg, steps_per_degree=s, backlash_deg=backlash_deg,
                                                      home_search_s=0.0), s)
                        for device_id, s, (name, cfg) in zip(device_ids, steps, axes, strict=True)}
@@ -252,6 +283,8 @@ class OrientalAZPeer:
     def _on_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU | None:
         if sending:
             return pdu
+        if pdu.dev_id not in self.drives:      # nobody on the bus answers; a gateway says so
+            return _NoResponseFromTarget(pdu) if self.gateway else None
         fault = self._take_fault(pdu.dev_id)
         if fault == "disconnect" and self._server is not None:
             for connection in list(self._server.active_connections.values()):
@@ -276,8 +309,8 @@ class OrientalAZPeer:
         def block(address: int, registers: list[int], readonly: bool = False) -> SimData:
             return SimData(address, values=registers, datatype=DataType.REGISTERS, readonly=readonly)
         return [block(DIRECT_DATA, pairs(*DIRECT_DEFAULTS)), block(INPUT_AUTO_OFF, pairs(0)), block(INPUT, pairs(0)),
-                block(OUTPUT, pairs(0, 0), readonly=True), block(FEEDBACK_POSITION, pairs(0), readonly=True),
-                block(ALARM_RESET, pairs(0))]
+                block(OUTPUT, pairs(0, 0), readonly=True), block(FEEDBACK, pairs(0, 0, 0), readonly=True),
+                block(ALARM_RESET, pairs(0)), block(OPERATION_DATA, pairs(*OPERATION_DEFAULTS) * OPERATION_DATA_COUNT)]
 
     def _action(self, drive: _Drive):
         async def on_request(function_code: int, start: int, address: int, count: int, registers: list[int],
@@ -287,7 +320,7 @@ class OrientalAZPeer:
                 return ExcCodes.DEVICE_FAILURE
             if values is None:                          # a read: refresh what the drive reports
                 registers[OUTPUT - start:OUTPUT - start + 4] = drive.output()
-                registers[FEEDBACK_POSITION - start:FEEDBACK_POSITION - start + 2] = drive.feedback_position()
+                registers[FEEDBACK - start:FEEDBACK - start + 6] = drive.feedback()
                 return None
             return self._write(drive, start, address, registers, cast(list[int], values))   # holding: ints
         return on_request

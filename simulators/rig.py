@@ -46,8 +46,9 @@ def _positioner_peer(world: SimWorld, name: str) -> OrientalAZPeer | ZaberPeer:
     if entry.map != SIMULATED_DRIVE_MAP:
         raise RigConfigError(f"key 'devices.{name}.map': the simulated rig's Modbus drives are Oriental Motor AZ "
                              f"drives (map {SIMULATED_DRIVE_MAP}), not {entry.map!r}")
+    # on Modbus/TCP, as a lab's AZ drives are reached through a gateway to their RS-485 bus
     return OrientalAZPeer(world, [(axis, getattr(config.axes, axis)) for axis in axes], device_ids=entry.device_ids,
-                          steps_per_degree=entry.steps_per_degree)
+                          steps_per_degree=entry.steps_per_degree, gateway=True)
 
 
 def _attenuator_peer(world: SimWorld) -> FW102CPeer:

@@ -168,7 +168,7 @@ def test_exception_reply_is_a_persistent_error_naming_drive_register_and_answer(
     message = str(err.value)
     assert message.startswith(f"arm_azimuth: Oriental Motor AZ series drive (Modbus id 1 at {faulty.peer.url}): "
                               "read feedback position at register 0x00CC")
-    assert message.endswith("answered Modbus exception 4 (device failure)")
+    assert message.endswith("answered Modbus exception 0x04 (server device failure)")
     assert not err.value.transient and faulty.events == []
     assert faulty.axes[0].position_deg() == pytest.approx(-LASH)            # one request only
 
@@ -176,7 +176,7 @@ def test_exception_reply_is_a_persistent_error_naming_drive_register_and_answer(
 def test_fault_can_target_one_drive(faulty):
     faulty.peer.inject("exception", axis=1)
     assert faulty.axes[0].position_deg() == pytest.approx(-LASH)
-    with pytest.raises(DeviceError, match=r"arm_polar: .*Modbus id 2 .* register 0x00CC .* exception 4"):
+    with pytest.raises(DeviceError, match=r"arm_polar: .*Modbus id 2 .* register 0x00CC .* exception 0x04"):
         faulty.axes[1].position_deg()
 
 
@@ -200,10 +200,35 @@ def test_alarm_during_a_move_names_code_and_meaning(faulty):
 
 
 def test_device_refusals_are_exception_replies(faulty):
-    with pytest.raises(DeviceError, match=r"register 0x007E .* exception 2 \(illegal address\)"):
+    with pytest.raises(DeviceError, match=r"register 0x007E .* exception 0x02 \(illegal data address\)"):
         faulty.link.write(1, "arm", "write status", 0x007E, [0, 0])          # read-only register
-    with pytest.raises(DeviceError, match=r"register 0x0120 .* exception 2 \(illegal address\)"):
+    with pytest.raises(DeviceError, match=r"register 0x0120 .* exception 0x02 \(illegal data address\)"):
         faulty.link.read(1, "arm", "read", 0x0120, 2)                        # not served
+
+
+@pytest.mark.parametrize("framer, gateway, last", [
+    ("rtu", False, "no valid reply"),                         # an RS-485 bus: silence
+    ("tcp", False, "no valid reply"),                         # a transparent converter: silence
+    ("tcp", True, "exception 0x0B (gateway target device failed to respond)"),
+])
+def test_an_absent_drive_is_silence_or_a_gateways_0B_retried_then_one_message(no_leaks, framer, gateway, last):
+    world = make_world()
+    with OrientalAZPeer(world, ARM, framer=framer, gateway=gateway) as peer:
+        link, events, axes = connect(peer.url, world, "arm", ARM, device_ids=(1, 9), timeout_s=0.1)
+        with pytest.raises(DeviceError) as err:
+            axes[1].position_deg()
+        assert axes[0].position_deg() == pytest.approx(-LASH)         # the drive that is there still answers
+        link.close()
+    message = str(err.value)
+    assert message.startswith("arm_polar: read feedback position failed 3 times; last: ")
+    assert "Modbus id 9" in message and last in message and err.value.unanswered
+    assert [kind for kind, _ in events] == ["retry", "reconnect"] * 2
+    assert all(last in fields["error"] for kind, fields in events if kind == "retry")
+
+
+def test_a_gateway_is_a_tcp_thing():
+    with pytest.raises(ValueError, match="gateway=True is a Modbus/TCP gateway"):
+        OrientalAZPeer(make_world(), ARM, framer="rtu", gateway=True)
 
 
 # -- life cycle and per-point cost ------------------------------------------------------------

@@ -28,11 +28,16 @@ def az(no_leaks_here):
     with OrientalAZPeer(world, AXES, framer="rtu", steps_per_degree=10.0, backlash_deg=0.0) as peer:
         host, port = peer.url.removeprefix("modbus-rtu://socket://").split(":")
         with socket.create_connection((host, int(port)), timeout=2.0) as link:
-            def exchange(request: bytes, reply_length: int) -> bytes:
+            def exchange(request: bytes, reply_length: int, timeout_s: float = 2.0) -> bytes:
+                """Whatever comes back within `timeout_s`, up to `reply_length` bytes."""
                 link.sendall(request)
+                link.settimeout(timeout_s)
                 data = b""
                 while len(data) < reply_length:
-                    chunk = link.recv(reply_length - len(data))
+                    try:
+                        chunk = link.recv(reply_length - len(data))
+                    except TimeoutError:
+                        break
                     if not chunk:
                         break
                     data += chunk
@@ -72,13 +77,39 @@ def test_unserved_register_is_illegal_address(az):
     assert exchange(read_0120 + crc16_modbus(read_0120), 5) == h("01 83 02 C0 F1")
 
 
-def test_operation_data_table_is_not_modelled(az):
-    """The official example writes operation data No. 0's position (0x1802); the peer models direct data
-    operation only, and says so with exception 02 rather than pretending."""
+def test_operation_data_no_0_position_is_written_and_read_back(az):
+    """The maker's FAQ 0331 frame writes operation data No. 0's position (0x1802) = -1000: the write is echoed,
+    and the position reads back as written."""
     _, exchange = az
-    assert exchange(h("01 10 18 02 00 02 04 FF FF FC 18 99 58"), 5) == h("01 90 02 CD C1")
+    assert exchange(h("01 10 18 02 00 02 04 FF FF FC 18 99 58"), 8) == h("01 10 18 02 00 02 E6 A8")
+    assert exchange(h("01 03 18 02 00 02 63 6B"), 9) == h("01 03 04 FF FF FC 18 BB 1D")
+
+
+def test_operation_data_area_ends_after_no_255(az):
+    """0x1800 + 256 x 0x40 registers: a read that runs past 0x57FF is an illegal address."""
+    _, exchange = az
+    assert exchange(h("01 03 57 FE 00 04 35 8D"), 5) == h("01 83 02 C0 F1")
+
+
+def test_feedback_position_and_speeds_during_a_move(az):
+    """0x00CC-0x00D1 in one read, 0.4 s into the captured move (1000 steps, 2 kHz, 1.5 kHz/s: still
+    accelerating): 120 steps, 600 Hz, and 36 r/min at the factory 1000 steps per motor revolution."""
+    world, exchange = az
+    move = h("01 10 00 58 00 10 20 00000000 00000001 000003E8 000007D0 000005DC 000005DC 000003E8 00000001 6D D1")
+    assert exchange(move, 8) == h("01 10 00 58 00 10 40 16")
+    world.clock.sleep(0.4)
+    reply = h("01 03 0C 00000078 00000024 00000258")
+    assert exchange(h("01 03 00 CC 00 06 05 F7"), 17) == reply + crc16_modbus(reply)
+
+
+def test_an_absent_unit_is_silent_on_rtu(az):
+    """Nothing at id 5 on the bus: no reply at all (there was exception 04), and the bus stays usable."""
+    _, exchange = az
+    assert exchange(h("05 03 00 7E 00 02 A5 97"), 5, timeout_s=0.3) == b""
+    assert exchange(h("01 03 00 7E 00 02 A4 13"), 9) == h("01 03 04 00 00 00 20 FB EB")
 
 
 def test_reply_crcs_are_right():
-    for frame in (h("01 03 04 00 00 00 20 FB EB"), h("01 83 02 C0 F1"), h("01 90 02 CD C1")):
+    for frame in (h("01 03 04 00 00 00 20 FB EB"), h("01 83 02 C0 F1"), h("01 10 18 02 00 02 E6 A8"),
+                  h("01 03 04 FF FF FC 18 BB 1D")):
         assert crc16_modbus(frame[:-2]) == frame[-2:]
