@@ -9,8 +9,9 @@ captured in delmic/odemis' simulator of the unit (src/odemis/driver/tlfw.py):
 
 - a command is a line ending in CR; each is echoed with its CR, followed by
   the reply + CR if the command has one, then the prompt `> ` (no line end);
-- `*idn?`, `pos?`, `pcount?`, `speed?`, `trig?`, `sensors?` answer their
-  value; `pos=n`, `pcount=n`, `speed=n`, `trig=n`, `sensors=n`, `save` set;
+- `*idn?`, `pos?`, `pcount?`, `speed?`, `trig?`, `sensors?`, `baud?` answer
+  their value; `pos=n`, `pcount=n`, `speed=n`, `trig=n`, `sensors=n`,
+  `baud=n`, `save` set (the manual's whole keyword table);
 - an unknown command (commands are lower case; a bare CR is an empty
   command: odemis' simulator treats it so too) answers `Command error
   CMD_NOT_DEFINED` + LF, a bad argument `Command error CMD_ARG_INVALID` + LF;
@@ -18,8 +19,11 @@ captured in delmic/odemis' simulator of the unit (src/odemis/driver/tlfw.py):
   speed, 2 s slow, the shorter way round (odemis' timing); the peer spends
   that rig time on the world's clock.
 
-Powers up on position 1, slow, sensors on (our choice: the stored defaults of
-a unit are whatever `save` last stored). The trigger input is not modelled.
+Powers up on position 1, slow, sensors on, 115200 baud (our choice: the stored
+defaults of a unit are whatever `save` last stored). The trigger input is not
+modelled, nor is the link rate `baud=0` selects (a pty has none): the setting
+is kept and read back. Nor are the manual's arrow keys (up/down: one position
+on), which are keystrokes of a terminal, not command lines.
 """
 
 from __future__ import annotations
@@ -64,6 +68,7 @@ class FW102CPeer(LinePeer):
         self.speed = 0
         self.trigger = 0
         self.sensors = 1
+        self.baud = 1                                 # 0: 9600, 1: 115200
         self.saved: dict[str, int] | None = None      # what `save` stored last
         self._stuck = 0
 
@@ -104,7 +109,7 @@ class FW102CPeer(LinePeer):
             return str(self._settings()[command[:-1]])
         name, equals, argument = command.partition("=")
         setters = {"pos": self._move, "pcount": self._set_count, "speed": self._set_speed,
-                   "trig": self._set_trigger, "sensors": self._set_sensors}
+                   "trig": self._set_trigger, "sensors": self._set_sensors, "baud": self._set_baud}
         if not equals or name not in setters:
             raise CommandError(NOT_DEFINED)
         if not _ARGUMENT.fullmatch(argument):
@@ -114,7 +119,7 @@ class FW102CPeer(LinePeer):
 
     def _settings(self) -> dict[str, int]:
         return {"pos": self.position, "pcount": self.positions, "speed": self.speed, "trig": self.trigger,
-                "sensors": self.sensors}
+                "sensors": self.sensors, "baud": self.baud}
 
     # -- settings ---------------------------------------------------------------------------------
     def _move(self, target: int) -> None:
@@ -146,6 +151,9 @@ class FW102CPeer(LinePeer):
 
     def _set_sensors(self, sensors: int) -> None:
         self.sensors = _flag(sensors)
+
+    def _set_baud(self, baud: int) -> None:
+        self.baud = _flag(baud)
 
 
 def _flag(value: int) -> int:

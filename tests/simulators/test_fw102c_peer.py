@@ -62,14 +62,21 @@ def test_every_setting_reads_back(peer):
                                    b"speed?\r0\r> ", b"trig=1\r> ", b"trig?\r1\r> ", b"sensors=0\r> ",
                                    b"sensors?\r0\r> "]
     assert answers(peer, "save") == [b"save\r> "]
-    assert peer.saved == {"pos": 3, "pcount": 6, "speed": 0, "trig": 1, "sensors": 0}
+    assert peer.saved == {"pos": 3, "pcount": 6, "speed": 0, "trig": 1, "sensors": 0, "baud": 1}
+
+
+def test_the_baud_rate_setting_of_the_manual_is_kept_and_read_back(peer):
+    """Manual Rev H p. 11: `baud=0` 9600, `baud=1` 115200, `baud?`; `save` stores it with the rest."""
+    assert answers(peer, "baud?", "baud=0", "baud?", "save", "baud=1", "baud?") == [
+        b"baud?\r1\r> ", b"baud=0\r> ", b"baud?\r0\r> ", b"save\r> ", b"baud=1\r> ", b"baud?\r1\r> "]
+    assert peer.saved is not None and peer.saved["baud"] == 0
 
 
 @pytest.mark.parametrize("command, error", [
     ("", "CMD_NOT_DEFINED"), ("Pos?", "CMD_NOT_DEFINED"), ("home", "CMD_NOT_DEFINED"), ("idn?", "CMD_NOT_DEFINED"),
     ("pos=0", "CMD_ARG_INVALID"), ("pos=7", "CMD_ARG_INVALID"), ("pos=", "CMD_ARG_INVALID"),
     ("pos=x", "CMD_ARG_INVALID"), ("speed=2", "CMD_ARG_INVALID"), ("pcount=8", "CMD_ARG_INVALID"),
-    ("sensors=-1", "CMD_ARG_INVALID")])
+    ("sensors=-1", "CMD_ARG_INVALID"), ("baud=2", "CMD_ARG_INVALID"), ("baud", "CMD_NOT_DEFINED")])
 def test_errors(peer, command, error):
     assert answers(peer, command) == [command.encode() + b"\rCommand error " + error.encode() + b"\n\r> "]
     assert peer.position == 3 and peer.speed == 1
