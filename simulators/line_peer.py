@@ -126,7 +126,9 @@ class _TcpServer:
         pending: dict[Any, LineSplitter] = {}
         try:
             while True:
-                for key, _ in sel.select():
+                # The connections before the listener: a client that sent its last line and closed (one
+                # connection per message) is read to its end before a new one is judged by `_free`.
+                for key, _ in sorted(sel.select(), key=lambda ready: ready[0].fileobj is self._listener):
                     sock: Any = key.fileobj
                     if sock is self._wake[0]:
                         return
