@@ -34,7 +34,8 @@ Any other address answers exception 02, as does writing a read-only register.
 
 A unit that is not on the link never answers on RTU (an RS-485 bus is silent), nor through a
 transparent Modbus/TCP converter; with `gateway=True` (Modbus/TCP through a gateway to the bus)
-the gateway answers exception 0Bh (gateway target device failed to respond) for it.
+the gateway answers exception 0Bh (gateway target device failed to respond) for it. Id 0 on RTU
+is the broadcast: every drive executes the request and none answers.
 
 Faults are injected on demand, per request, optionally only for one drive: "no_reply" and
 "disconnect" (the request is never executed nor answered), "exception" (04, device
@@ -242,7 +243,7 @@ class OrientalAZPeer:
                                      trace_packet=self._on_packet)
         else:   # pymodbus listens on TCP for a socket:// "serial port" and frames RTU on it
             server = ModbusSerialServer(devices, port="socket://127.0.0.1:0", framer=FramerType.RTU,
-                                        trace_pdu=on_pdu, trace_packet=self._on_packet)
+                                        trace_pdu=on_pdu, trace_packet=self._on_packet, broadcast_enable=True)
         await server.serve_forever(background=True)
         self._server = server
         listener = cast(asyncio.Server, server.transport)      # a listening server's transport
@@ -283,7 +284,8 @@ class OrientalAZPeer:
     def _on_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU | None:
         if sending:
             return pdu
-        if pdu.dev_id not in self.drives:      # nobody on the bus answers; a gateway says so
+        if pdu.dev_id not in self.drives and not (pdu.dev_id == 0 and self.framer == "rtu"):
+            # nobody on the bus answers; a gateway says so
             return _NoResponseFromTarget(pdu) if self.gateway else None
         fault = self._take_fault(pdu.dev_id)
         if fault == "disconnect" and self._server is not None:

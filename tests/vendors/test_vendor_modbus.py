@@ -109,6 +109,13 @@ def test_minimalmodbus_an_absent_unit_times_out_and_the_bus_goes_on(rtu_bus):
     assert rtu_bus.instrument(1).read_long(0x007E) == READY
 
 
+def test_minimalmodbus_a_broadcast_write_reaches_every_drive_unanswered(rtu_bus):
+    """Id 0: every drive on the bus takes the write and none answers (minimalmodbus waits for no reply)."""
+    rtu_bus.instrument(0).write_long(0x1802, 500)
+    assert bytes(rtu_bus.line.received) == b""
+    assert [rtu_bus.instrument(i).read_long(0x1802) for i in (1, 2)] == [500, 500]
+
+
 def test_minimalmodbus_past_the_operation_data_is_an_illegal_address(rtu_bus):
     """Operation data No. 255 ends at 0x57FF: a read running past it is exception 02, as a request."""
     with pytest.raises(minimalmodbus.IllegalRequestError):
