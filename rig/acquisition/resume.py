@@ -16,7 +16,6 @@ so the message says which line to repair or delete.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -26,6 +25,7 @@ from typing import Any
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
 from rig.config.rigfile import RigConfig
+from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.dataset_format import BRDF_COLUMNS
 from rig.data.dataset_reader import complete_lines, numeric_columns, read_brdf_table
@@ -98,9 +98,9 @@ def _events(folder: Path) -> Iterator[tuple[Path, int, dict]]:
     text, _ = complete_lines(path, path.read_bytes())      # reopen has cut a torn last line
     for lineno, line in enumerate(text.split("\n")[:-1], start=1):
         try:
-            event = json.loads(line)
-        except (json.JSONDecodeError, RecursionError):
-            raise _corrupt(path, lineno, "not valid JSON") from None
+            event = parse_json(line, path, first_line=lineno)
+        except JsonFileError as exc:
+            raise _corrupt(path, lineno, exc.reason) from None
         if not isinstance(event, dict):
             raise _corrupt(path, lineno, "not a JSON object")
         yield path, lineno, event

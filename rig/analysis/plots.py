@@ -20,7 +20,6 @@ With a fit (`{"model", "params", "metrics"?}` as `rig fit --json` writes):
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -141,7 +140,7 @@ def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
     wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
     curve = _plane_curve(model, wi, t) if model else None
     fig = Figure(figsize=(14, 5.8))
-    fig.suptitle(f"{_sample(ds)} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points within "
+    fig.suptitle(f"{ds.sample_id()} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points within "
                  f"{tol_deg:g}° of the plane of incidence", fontsize=12)
     _draw_polar(fig.add_axes((0.045, 0.04, 0.36, 0.86), projection="polar"), signed, f, u, curve, theta_i)
     _draw_cartesian(fig.add_axes((0.5, 0.1, 0.44, 0.78)), signed, f, u, off, tol_deg, curve, theta_i)
@@ -190,7 +189,7 @@ def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -
         setter(f"{axis}·f_r [sr⁻¹]")
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.08, label="measured f_r [sr⁻¹]")
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(f"{_sample(ds)} — BRDF lobe, {_series_label(theta_i, phi_i)} ({rows.sum()} points)\n"
+    ax.set_title(f"{ds.sample_id()} — BRDF lobe, {_series_label(theta_i, phi_i)} ({rows.sum()} points)\n"
                  "radius ∝ f_r in the viewing direction", fontsize=11)
     fig.savefig(out, dpi=DPI, bbox_inches="tight")
     return out
@@ -228,14 +227,10 @@ def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
     for ax in (ax_fit, ax_res):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle(f"{_sample(ds)} — {_fit_title(fit)}", fontsize=11)
+    fig.suptitle(f"{ds.sample_id()} — {_fit_title(fit)}", fontsize=11)
     fig.subplots_adjust(left=0.075, right=0.98, bottom=0.1, top=0.85, wspace=0.22)
     fig.savefig(out, dpi=DPI)
     return out
-
-
-def _sample(ds: Dataset) -> str:
-    return str(ds.manifest.get("sample", {}).get("id") or ds.path.name)
 
 
 def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLike,
@@ -263,15 +258,3 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
             paths.append(plot_residuals(ds, fit, out_dir / "fit_residuals.png"))
     return paths
 
-
-def read_fit(path: str | os.PathLike) -> dict:
-    """A fit record from `rig fit --json` output (a single fit, not `--model all`)."""
-    try:
-        fit = json.loads(Path(path).read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON: {exc}") from None
-    if not isinstance(fit, dict) or "model" not in fit or "params" not in fit:
-        raise ValueError(f"{path}: not a single fit (needs 'model' and 'params'; "
-                         "for `rig fit --model all` output pick one of its 'fits')")
-    get_model(fit["model"])
-    return fit

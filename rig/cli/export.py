@@ -8,8 +8,9 @@ import sys
 import warnings
 from pathlib import Path
 
+from rig.analysis.result_files import read_fit
 from rig.analysis.road import export_road
-from rig.cli.predict import predictor_for, read_fit
+from rig.cli.predict import predictor_for
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load

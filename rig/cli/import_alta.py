@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from rig.core.exits import EXIT_OK, fail
+from rig.core.jsonfile import read_json
 from rig.data.alta import CONVERTIBLE_OUT, AltaError
 from rig.data.dataset_format import DatasetError
 from rig.data.importer import MISSING_PARAM_OUT_DEFAULT, import_alta
@@ -21,7 +21,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         return fail(str(exc))
     except OSError as exc:
         return fail(f"{exc.filename}: {exc.strerror}")
-    manifest = json.loads((out / "dataset.json").read_text(encoding="utf-8"))
+    manifest = read_json(out / "dataset.json")          # as the import just wrote it
     counts = manifest["counts"]
     print(f"imported {args.alta_file} → {out}: {counts['measured']} points, {counts['skipped']} skipped "
           "(reasons in skipped.csv)", file=sys.stderr)

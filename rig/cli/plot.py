@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig.analysis.plots import plot_dataset, read_fit
+from rig.analysis.plots import plot_dataset
+from rig.analysis.result_files import read_fit
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 

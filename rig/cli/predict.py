@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import numpy as np
 
 from rig.analysis.predict import InterpolatingPredictor, measured_domain, model_predictor
 from rig.analysis.prediction import Predictor
+from rig.analysis.result_files import read_fit
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
@@ -64,24 +64,6 @@ def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | N
             raise ValueError("--fit and --model go with --method model")
         return InterpolatingPredictor(measured_domain(ds))
     return model_predictor(ds, read_fit(fit_path) if fit_path else None, model, source=str(fit_path))
-
-
-def read_json_object(path: str | Path) -> dict | None:
-    """A JSON file's top-level object (None if it holds something else); ValueError names the file and line of
-    text that is not JSON. The CLI's readers of files rig wrote (fits, road.json) check the object's keys."""
-    try:
-        value = json.loads(Path(path).read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: line {exc.lineno}: not JSON ({exc.msg})") from None
-    return value if isinstance(value, dict) else None
-
-
-def read_fit(path: str) -> dict:
-    """One model's fit as `rig fit --json` writes it; ValueError names the file and what is wrong."""
-    fit = read_json_object(path)
-    if fit is None or "fits" in fit:
-        raise ValueError(f"{path}: not one model's fit (write it with `rig fit DATASET --model NAME --json`)")
-    return fit
 
 
 def cmd_predict(args: argparse.Namespace) -> int:

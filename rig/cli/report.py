@@ -7,20 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from rig.cli.predict import read_fit, read_json_object
+from rig.analysis.result_files import read_fit, read_road
 from rig.core.exits import EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
 from rig.data.output_folder import removed_on_failure
 from rig.report import report_html
-
-
-def read_road(path: str) -> dict:
-    """road.json as `rig export --format road` writes it; ValueError names the file."""
-    road = read_json_object(path)
-    if road is None:
-        raise ValueError(f"{path}: not a road.json (write it with `rig export DATASET --format road`)")
-    return road
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -31,8 +23,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     try:
         ds = load(Path(args.dataset))
         fit = read_fit(args.fit) if args.fit else None
-        if fit is not None and not {"model", "params"} <= fit.keys():
-            raise ValueError(f"{args.fit}: not a fit from `rig fit --json` (needs 'model' and 'params')")
         road = read_road(args.road) if args.road else None
         html = report_html(ds, fit, road)
     except (DatasetError, ValueError, KeyError, TypeError) as exc:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import os
 import sys
@@ -15,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rig.core.jsonfile import JsonFileError, decode_utf8, json_kind, parse_json
 from rig.data.dataset_format import (
     BOOLEAN_COLUMNS,
     CONTRACT_COLUMNS,
@@ -63,6 +63,10 @@ class Dataset:
         rows = self.columns["series"] == series
         return mean_direction_deg(self.columns["theta_i_deg"][rows], self.columns["phi_i_deg"][rows])
 
+    def sample_id(self) -> str:
+        """The manifest's sample id, else the folder's name: what figures and exports call the sample."""
+        return str((self.manifest.get("sample") or {}).get("id") or self.path.name)
+
     def has_flag(self, flag: str) -> np.ndarray:
         return np.array([flag in f for f in self.flags], bool)
 
@@ -99,31 +103,31 @@ class Dataset:
         return frame
 
 
-_JSON_KINDS = {list: "array", str: "string", int: "number", float: "number", bool: "boolean", type(None): "null"}
+#: Manifest entries that readers look into (docs/dataset.md): each an object where present (null: not recorded).
+MANIFEST_OBJECTS = ("campaign", "sample", "rig", "software", "counts", "provenance", "simulated_brdf", "alignment",
+                    "footprint")
 
 
 def read_manifest(folder: Path, *, purpose: str = "cannot read it") -> dict:
     """dataset.json as a dict; DatasetError naming the file for anything else."""
     path = folder / "dataset.json"
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except (FileNotFoundError, NotADirectoryError):
         raise DatasetError(f"{folder}: not a dataset folder (no readable dataset.json); {purpose}") from None
-    except UnicodeDecodeError as exc:
-        raise DatasetError(f"{path}: not UTF-8 text (byte {exc.start}); {purpose}") from None
     except OSError as exc:
         raise DatasetError(f"{path}: {exc.strerror or exc}; {purpose}") from None
     try:
-        manifest = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DatasetError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg}); {purpose}") from None
-    except RecursionError:
-        raise DatasetError(f"{path}: JSON nested too deeply; {purpose}") from None
+        manifest = parse_json(decode_utf8(data, path), path)
+    except JsonFileError as exc:
+        raise DatasetError(f"{exc}; {purpose}") from None
     if not isinstance(manifest, dict):
-        raise DatasetError(f"{path}: a JSON {_JSON_KINDS.get(type(manifest), 'value')}, not the manifest's object; "
-                           f"{purpose}")
+        raise DatasetError(f"{path}: {json_kind(manifest)}, not the manifest's object; {purpose}")
     if manifest.get("format") != FORMAT:
         raise DatasetError(f"{path}: format is {str(manifest.get('format'))[:40]!r}, not {FORMAT!r}; {purpose}")
+    for key in MANIFEST_OBJECTS:
+        if not isinstance(manifest.get(key, {}), dict | None):
+            raise DatasetError(f"{path}: {key!r} is {json_kind(manifest[key])}, not an object; {purpose}")
     return manifest
 
 

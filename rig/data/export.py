@@ -60,10 +60,6 @@ def _refuse_existing(path: Path) -> None:
         raise ExportError(f"{path} already exists; choose another --out (nothing was overwritten)")
 
 
-def _sample_id(ds: Dataset) -> str:
-    return str(ds.manifest.get("sample", {}).get("id") or ds.path.name)
-
-
 def _angles_rad(ds: Dataset) -> np.ndarray:
     return np.radians(np.stack([ds[c] for c in ANGLE_COLUMNS], axis=1))
 
@@ -89,7 +85,7 @@ def export_alta(ds: Dataset, out: Path, coverage_k: float = 1.0) -> list[Path]:
                         "(ALTA then applies its --dt segment to every point)")
     return [write_alta(out, _angles_rad(ds), ds["brdf_per_sr"], param_in="SPHERICAL_TL_PL_TV_PV",
                        param_out="INV_STERADIAN", ci=None if missing else coverage_k * u,
-                       coverage_k=None if missing else coverage_k, header={"SAMPLE": f'"{_sample_id(ds)}"'},
+                       coverage_k=None if missing else coverage_k, header={"SAMPLE": f'"{ds.sample_id()}"'},
                        comments=comments)]
 
 

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import OpenEXR
 
+from rig.core.jsonfile import parse_json
 from rig.core.values import Window
 from rig.physics.geometry import BrdfAngles
 
@@ -99,5 +100,5 @@ def write_luminance_exr(path: str | Path, luminance_cd_m2: np.ndarray, metadata:
 def read_luminance_exr(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
     """(luminance image, metadata) of a file written by write_luminance_exr."""
     exr = OpenEXR.File(str(path))
-    meta = json.loads(exr.header().get("rig_metadata", "{}"))
+    meta = parse_json(exr.header().get("rig_metadata", "{}"), f"{path} (rig_metadata)")
     return np.array(exr.channels()["Y"].pixels, dtype=np.float32), meta

@@ -174,7 +174,7 @@ def export_radiance(ds: Dataset, out: Path, *, isotropic: bool) -> list[Path]:
     for problem in sparsity_problems(files, isotropic=isotropic):
         warnings.warn(f"{ds.path}: {problem}", SparseIncidenceWarning, stacklevel=2)
     out.mkdir(parents=True, exist_ok=True)
-    sample = str(ds.manifest.get("sample", {}).get("id") or ds.path.name)
+    sample = ds.sample_id()
     paths = []
     for f in files:
         path = out / file_name(f.series, f.theta_i_deg, f.phi_i_deg)

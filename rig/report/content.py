@@ -4,7 +4,6 @@ the facts can be tested apart from their presentation (rig.report.html)."""
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -14,8 +13,9 @@ from typing import Any
 import numpy as np
 
 from rig import __version__
+from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.dataset_format import DatasetError
-from rig.data.dataset_reader import Dataset
+from rig.data.dataset_reader import Dataset, complete_lines
 from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
 
 #: Events of events.jsonl that record a fault the run survived (docs/dataset.md), in the report's order.
@@ -159,17 +159,15 @@ def read_events(folder: Path) -> list[dict]:
     path = folder / "events.jsonl"
     if not path.exists():
         return []
-    lines = path.read_text(encoding="utf-8").split("\n")
+    text, _ = complete_lines(path, path.read_bytes())     # a last line without a newline: torn by a crash
     events = []
-    for k, line in enumerate(lines, 1):
+    for k, line in enumerate(text.split("\n"), 1):
         if not line.strip():
             continue
         try:
-            obj = json.loads(line)
-        except json.JSONDecodeError:
-            if k == len(lines):                    # no newline after it: torn by a crash
-                break
-            raise DatasetError(f"{path}: line {k}: not a JSON object") from None
+            obj = parse_json(line, path, first_line=k)
+        except JsonFileError as exc:
+            raise DatasetError(str(exc)) from None
         if isinstance(obj, dict):
             events.append(obj)
     return events

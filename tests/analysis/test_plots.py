@@ -89,4 +89,4 @@ def test_cli_plot(dataset, truth_fit, tmp_path, capsys):
     assert args.func(args) == 0 and "11 figures" in capsys.readouterr().err
     assert (out / "fit_residuals.png").exists()
     fit_file.write_text(json.dumps({"dataset": "x", "fits": []}))
-    assert args.func(args) == 2 and "not a single fit" in capsys.readouterr().err
+    assert args.func(args) == 2 and "not one model's fit" in capsys.readouterr().err
