@@ -30,7 +30,8 @@ Served per drive, every value an int32 pair, upper word first:
 - 0x1800-0x57FF operation data No. 0-255, 0x40 registers (32 pairs) each: type, position, speed,
   starting and stopping rates, current, ... from +0x00, +0x02, ... (the maker's FAQ 0331 writes No. 0's
   position at 0x1802). Stored as written and read back; running them (START) is not modelled.
-Any other address answers exception 02, as does writing a read-only register.
+Any other address answers exception 02, as does writing a read-only register. Function codes
+03, 06, 08 (sub-function 00h, the echo) and 10h are served; any other answers exception 01.
 
 A unit that is not on the link never answers on RTU (an RS-485 bus is silent), nor through a
 transparent Modbus/TCP converter; with `gateway=True` (Modbus/TCP through a gateway to the bus)
@@ -72,6 +73,8 @@ FEEDBACK = 0x00CC             # 3 pairs: position [steps], speed [r/min], speed 
 STEPS_PER_MOTOR_REV = 1000    # the AZ's factory resolution: what the r/min of the feedback speed is of
 OPERATION_DATA, OPERATION_DATA_STRIDE, OPERATION_DATA_COUNT = 0x1800, 0x40, 256
 ALARM_RESET = 0x0180
+#: The function codes an AZ drive serves: read holding registers, write one, diagnostics (echo only), write many.
+FUNCTIONS = (3, 6, 8, 16)
 ZHOME, STOP, ALM_RST = 1 << 4, 1 << 5, 1 << 7
 UNMODELLED_INPUTS = 1 << 3 | 1 << 6 | 1 << 14 | 1 << 15        # START, FREE, FW-POS, RV-POS
 READY, ALM_A, MOVE, IN_POS = 1 << 5, 1 << 7, 1 << 13, 1 << 14
@@ -103,15 +106,17 @@ class _Fault:
     device_id: int | None          # only requests to this drive; None: any request
 
 
-class _NoResponseFromTarget(ModbusPDU):
-    """A request for a unit absent from the bus behind a gateway: the gateway answers it, with exception 0Bh."""
+class _Refused(ModbusPDU):
+    """A request answered with an exception before any register is looked at: a function the drive lacks (01h),
+    or, from a gateway, a unit absent from the bus behind it (0Bh)."""
 
-    def __init__(self, request: ModbusPDU):
+    def __init__(self, request: ModbusPDU, code: ExcCodes):
         super().__init__(dev_id=request.dev_id, transaction_id=request.transaction_id)
         self.function_code = request.function_code
+        self.code = code
 
     async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
-        return ExceptionResponse(self.function_code, ExcCodes.GATEWAY_NO_RESPONSE)
+        return ExceptionResponse(self.function_code, self.code)
 
 
 class _Drive:
@@ -286,7 +291,9 @@ class OrientalAZPeer:
             return pdu
         if pdu.dev_id not in self.drives and not (pdu.dev_id == 0 and self.framer == "rtu"):
             # nobody on the bus answers; a gateway says so
-            return _NoResponseFromTarget(pdu) if self.gateway else None
+            return _Refused(pdu, ExcCodes.GATEWAY_NO_RESPONSE) if self.gateway else None
+        if pdu.function_code not in FUNCTIONS or pdu.function_code == 8 and pdu.sub_function_code != 0:
+            return _Refused(pdu, ExcCodes.ILLEGAL_FUNCTION)
         fault = self._take_fault(pdu.dev_id)
         if fault == "disconnect" and self._server is not None:
             for connection in list(self._server.active_connections.values()):

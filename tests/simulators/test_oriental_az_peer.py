@@ -109,6 +109,19 @@ def test_an_absent_unit_is_silent_on_rtu(az):
     assert exchange(h("01 03 00 7E 00 02 A4 13"), 9) == h("01 03 04 00 00 00 20 FB EB")
 
 
+@pytest.mark.parametrize("request_pdu, reply_pdu", [
+    ("08 0000 1234", "08 0000 1234"),          # diagnostics, return query data: the echo
+    ("08 0001 0000", "88 01"),                 # other diagnostics: not the drive's
+    ("04 00CC 0002", "84 01"),                 # read input registers
+    ("17 007E 0002 0078 0002 04 0000 0000", "97 01"),      # read/write multiple registers (FC 23)
+])
+def test_function_codes_are_those_of_the_drive(az, request_pdu, reply_pdu):
+    """FC 03, 06, 08 (echo) and 10h are served; any other is exception 01 (illegal function)."""
+    _, exchange = az
+    request, reply = h("01" + request_pdu), h("01" + reply_pdu)
+    assert exchange(request + crc16_modbus(request), len(reply) + 2) == reply + crc16_modbus(reply)
+
+
 def test_reply_crcs_are_right():
     for frame in (h("01 03 04 00 00 00 20 FB EB"), h("01 83 02 C0 F1"), h("01 10 18 02 00 02 E6 A8"),
                   h("01 03 04 FF FF FC 18 BB 1D")):

@@ -175,9 +175,11 @@ def test_umodbus_direct_operation_then_feedback_speed_then_stop(served_arm):
         assert _int32(tcp.send_message(tcp.read_holding_registers(2, 0x00CC, 2), gateway)) == [halted]
 
 
-def test_umodbus_an_absent_unit_is_the_gateways_exception_0B(served_arm):
+def test_umodbus_an_absent_unit_is_the_gateways_0B_the_drives_refusals_their_own(served_arm):
     with socket.create_connection(served_arm, timeout=5.0) as gateway:
         with pytest.raises(umodbus_errors.GatewayTargetDeviceFailedToRespondError):
             tcp.send_message(tcp.read_holding_registers(9, 0x007E, 2), gateway)
         with pytest.raises(umodbus_errors.IllegalDataAddressError):            # a drive that is there: its own
             tcp.send_message(tcp.read_holding_registers(1, 0x0120, 2), gateway)
+        with pytest.raises(umodbus_errors.IllegalFunctionError):               # FC 04: not an AZ's
+            tcp.send_message(tcp.read_input_registers(1, 0x00CC, 2), gateway)
