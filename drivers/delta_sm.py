@@ -98,7 +98,7 @@ class DeltaSM(LineInstrument, LampSupply):
         self._sink: EventSink | None = None
         self._on = False                         # rig switched the output on (and not off since)
         self._watchdog_off: str | None = None    # the supply's watchdog switched it off since: when
-        self._blocked_reported: str | None = None
+        self._blocked_reported: int | None = None    # the blocking bits of the last `lamp_output_blocked`
         self.ramp_step_s = ramp_step_s
         self.ramp_s = ramp_s
         self.current_limit_a = current_limit_a
@@ -213,8 +213,9 @@ class DeltaSM(LineInstrument, LampSupply):
         if blocked:
             warnings = self._drain(scpi.WARNING)
             reason = "; ".join(blocked) + (f" (warnings: {'; '.join(warnings)})" if warnings else "")
-            if reason != self._blocked_reported:
-                self._blocked_reported = reason
+            bits = status & sum(scpi.BLOCKING_BITS)
+            if bits != self._blocked_reported:
+                self._blocked_reported = bits
                 self.events("lamp_output_blocked", device=self.name, status_a=status, reason=reason)
             return OutputLoss(f"the supply blocks its output: {reason}", restart=False)
         if self.query(scpi.OUTPUT_STATE):

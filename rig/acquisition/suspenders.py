@@ -99,7 +99,10 @@ class Suspender(abc.ABC):
 
 class LampOutOfTolerance(Suspender):
     """Lamp current or voltage outside the campaign's tolerance (a burn-out shows as no current); polled on a
-    schedule (module docstring)."""
+    schedule (module docstring). Too little current is first put to the supply (`LampSupply.output_loss`): an output
+    it blocks (an open interlock, a remote shut-down, a fault) pauses the run under that name until it clears; an
+    output its watchdog switched off (rig stalled longer than the watchdog) clears the pause at once, and the re-warm
+    switches the lamp on again."""
 
     name = "lamp"
     retake = Retake.SINCE_CHECK
@@ -121,6 +124,8 @@ class LampOutOfTolerance(Suspender):
         self.lamp, self.current_a, self.tolerances, self.reference_v = lamp, current_a, tolerances, reference_v
         self.clock, self.check_every_s = clock, check_every_s
         self.passed_at_s = -math.inf     # clock time of the last passing check
+        #: The last check found the output switched off by the supply with nothing holding it off (`output_loss`).
+        self.restart = False
 
     def poll(self) -> str | None:
         """Check when CHECK_EVERY_S has passed since the last passing check; either way the point about to be
@@ -131,6 +136,11 @@ class LampOutOfTolerance(Suspender):
         return reason
 
     def check(self) -> str | None:
+        if self.restart:
+            # tripped on an output the supply switched off by itself, which nothing holds off: clear, so that the
+            # engine's re-warm (rewarm) switches the lamp on again, ramped as at the start
+            self.restart = False
+            return None
         reason = self._out_of_tolerance()
         if reason is None:
             self.passed_at_s, self.unvouched = self.clock.now(), 0
@@ -140,6 +150,10 @@ class LampOutOfTolerance(Suspender):
         current = self.lamp.measure_current_a()
         wanted = self.current_a
         if abs(current - wanted) > self.tolerances.lamp_current_tolerance_rel * wanted:
+            if (loss := self.lamp.output_loss()) is not None:      # not the lamp: the supply feeds it nothing
+                self.restart = loss.restart
+                return f"lamp output off: {loss.reason}" + ("; switching it on again and re-warming" if loss.restart
+                                                            else "; the run goes on once that is cleared")
             return (f"lamp current {current:.3f} A at {self.lamp.measure_voltage_v():.2f} V with {wanted:.3f} A "
                     "set" + (": lamp burnt out or circuit open" if current < self.BURNT_OUT_FRACTION * wanted else ""))
         voltage = self.lamp.measure_voltage_v()
