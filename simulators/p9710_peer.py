@@ -40,7 +40,6 @@ from rig.simulators.faults import METER_FAULTS
 from rig.simulators.line_peer import LinePeer
 from rig.simulators.world import SimWorld
 
-MAX_LINE = 100
 SPACERS = ",; \t"
 #: Full scale of ranges 0 … 7 (2 mA … 200 pA).
 FULL_SCALE_A = tuple(2e-3 * 10.0 ** -r for r in range(8))
@@ -102,6 +101,7 @@ class P9710Peer(LinePeer):
     DETECTOR = "VL__"
     FAULTS = METER_FAULTS
     SHORT_FRACTION = 1.0        # the whole reply, without its terminator
+    MAX_LINE = 100              # §15.1: a command line holds at most 100 characters
 
     def __init__(self, world: SimWorld, *, responsivity_a_per_lx: float | None = None,
                  identity: str = "P9710 V5.6", acknowledge_chars: bool = False):
@@ -137,11 +137,7 @@ class P9710Peer(LinePeer):
     # -- the line -----------------------------------------------------------------------------
     def respond(self, line: bytes) -> bytes | None:
         """Injected faults spoil the answers to lines that measure; `overload` answers `?16` instead."""
-        text = line.decode("ascii", "replace")
-        try:
-            commands = self.parse(text)
-        except MeterError as exc:
-            return self.wire(self.acknowledge(f"?{exc.code}"), None)
+        commands = self.parse(line.decode("ascii", "replace"))
         fault = self.take_fault() if any(c in MEASUREMENTS for c, _ in commands) else None
         if fault == "no_reply":
             return None
@@ -153,12 +149,14 @@ class P9710Peer(LinePeer):
             return answer
         return "#" if not answer else "*" if answer.startswith("?") else answer
 
+    def overlong(self) -> bytes | None:
+        """A line over 100 characters: `?1` (command not allowed), at its LF."""
+        return self.wire(self.acknowledge("?1"), None)
+
     @staticmethod
     def parse(text: str) -> list[tuple[str, str]]:
         """(mnemonic, parameter) pairs and spacers (`(",", "")`); the rest of the line from where it is not
-        a command is one unknown mnemonic; `?1` if the line is too long."""
-        if len(text) > MAX_LINE:
-            raise MeterError(1)
+        a command is one unknown mnemonic."""
         commands, at, upper = [], 0, text.upper()
         while at < len(text):
             if text[at] in SPACERS:
