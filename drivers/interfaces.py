@@ -13,8 +13,8 @@ the simulated rig moves and exposures cost rig time and no wall time.
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
-from typing import ClassVar
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -259,6 +259,10 @@ class RigDevices:
     clock: Clock
     simulated: bool = False
     attenuator: Attenuator | None = None
+    #: What the last `safe_state` found of the lamp, for the console and the manifest: `lamp_off_confirmed` (the
+    #: driver's read-back said off) and `lamp_problem` (why not: the lamp may still be on). One dict shared by the
+    #: copies of this object (`dataclasses.replace`, as the runner's tended devices are made).
+    exit_report: dict[str, Any] = field(default_factory=dict)
 
     def identities(self) -> dict[str, str]:
         return {"arm": self.arm.identity(), "stage": self.stage.identity(),
@@ -287,6 +291,8 @@ class RigDevices:
                 action()
             except Exception as exc:  # every step is attempted; each failure is reported
                 problems.append(f"{what}: {exc}")
+        lamp_problem = next((p for p in problems if p.startswith("lamp")), None)
+        self.exit_report.update(lamp_off_confirmed=lamp_problem is None, lamp_problem=lamp_problem)
         return problems
 
     def close(self) -> None:

@@ -10,6 +10,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from rig import __version__
 from rig.acquisition.engine import Runner
@@ -46,6 +47,8 @@ class RunOutcome:
     wall_s: float
     out: Path
     error: str | None = None
+    #: The lamp supply did not confirm the lamp off at the end (the lamp may still be on): why.
+    lamp_problem: str | None = None
 
 
 class SignalRequests:
@@ -143,8 +146,10 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
         writer.write_skipped(plan.skipped)
     wall0 = time.perf_counter()
     runner = None
+    exit_report: dict[str, Any] = {}
     try:
         with devices as opened:
+            exit_report = opened.exit_report
             runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows,
                             source=source)
             requests.attach(runner)
@@ -154,6 +159,11 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
         if runner is None:       # the rig never came up, so no runner recorded how the run ended
             record_unstarted(writer, ending)
     finally:
-        writer.close()
+        try:
+            if "lamp_off_confirmed" in exit_report:     # the lamp's state as the supply confirmed it, in dataset.json
+                writer.update_manifest(lamp_at_exit={key: exit_report[key] for key in ("lamp_off_confirmed",
+                                                                                       "lamp_problem")})
+        finally:
+            writer.close()
     return RunOutcome(ending.status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
-                      time.perf_counter() - wall0, out, ending.message)
+                      time.perf_counter() - wall0, out, ending.message, exit_report.get("lamp_problem"))

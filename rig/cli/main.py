@@ -161,6 +161,9 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _report_outcome(outcome: RunOutcome, n_skipped: int) -> int:
     """How the run ended, on stderr, and its exit code."""
+    if outcome.lamp_problem:
+        print(f"rig: WARNING: THE LAMP MAY STILL BE ON: the lamp supply did not confirm it switched off "
+              f"({outcome.lamp_problem}). Switch it off at the supply.", file=sys.stderr)
     if outcome.status == "failed":
         print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {outcome.out}",
               file=sys.stderr)

@@ -8,7 +8,16 @@ protocol rig names the cause, and goes on once it is gone, instead of waiting `m
   and lasts until it is cleared.
 """
 
+import json
+from contextlib import contextmanager
+
 from test_runner import at_point, events, run, small_campaign, suspenders_run
+
+from rig.acquisition.execute import execute
+from rig.cli.main import _report_outcome
+from rig.config.rigfile import RigConfig
+from rig.planning.plan import build_plan
+from rig.simulators.rig import SimulatedRig
 
 #: The built-in rig's `lamp.watchdog_s`, and a freeze longer than it.
 WATCHDOG_S = 5.0
@@ -61,3 +70,44 @@ def test_a_remote_shut_down_that_stays_is_what_the_failed_run_names(tmp_path):
                                  "remote shut-down (RSD) active")
     assert "burnt out" not in str(error)
     assert [e["event"] for e in events(tmp_path / "ds")].count("lamp_output_blocked") == 1
+
+
+# -- the lamp's state at the end, when the supply stops answering (issue 30 item 6) ------------------------------
+@contextmanager
+def simulated(campaign, rig, sims):
+    """`open_campaign_rig` that lets the test reach the peers (`sims[0].peers`)."""
+    truth = campaign.sample.simulated_brdf
+    with SimulatedRig(rig, truth.model, truth.params) as sim:
+        sims.append(sim)
+        yield sim.devices
+
+
+def run_to_the_end(tmp_path, at=None):
+    """`execute` a small campaign; `at(peers)` after point 5. The outcome and the dataset's manifest."""
+    campaign, rig, sims = small_campaign(suspenders={"max_wait_s": 60}), RigConfig(), []
+    outcome = execute(campaign, None, rig, build_plan(campaign, rig), tmp_path / "ds", simulated(campaign, rig, sims),
+                      progress=lambda p: at and p.done == 5 and at(sims[0].peers))
+    return outcome, json.loads((tmp_path / "ds" / "dataset.json").read_text())
+
+
+def test_a_supply_that_stops_answering_leaves_a_loud_warning_that_the_lamp_may_be_on(tmp_path, capsys):
+    def supply_gone(peers):
+        if peers["lamp"].url is not None:
+            peers["lamp"].stop()                       # the supply's Ethernet is gone: every exchange is refused
+            peers["arm"].inject("exception")           # and the run fails on an axis
+    outcome, manifest = run_to_the_end(tmp_path, supply_gone)
+    assert outcome.status == "failed"
+    assert outcome.lamp_problem.startswith("lamp output off: lamp: OUTPut OFF failed 6 times")
+    assert manifest["lamp_at_exit"] == {"lamp_off_confirmed": False, "lamp_problem": outcome.lamp_problem}
+    _report_outcome(outcome, 0)
+    err = capsys.readouterr().err
+    assert "rig: WARNING: THE LAMP MAY STILL BE ON: the lamp supply did not confirm it switched off" in err
+    assert "OUTPut OFF failed 6 times" in err and "Switch it off at the supply." in err
+
+
+def test_a_lamp_confirmed_off_is_recorded_as_such_and_nothing_is_said(tmp_path, capsys):
+    outcome, manifest = run_to_the_end(tmp_path)
+    assert outcome.status == "complete" and outcome.lamp_problem is None
+    assert manifest["lamp_at_exit"] == {"lamp_off_confirmed": True, "lamp_problem": None}
+    _report_outcome(outcome, 0)
+    assert "LAMP" not in capsys.readouterr().err
