@@ -29,7 +29,8 @@ Served per drive, every value an int32 pair, upper word first:
 - 0x0180-81 alarm reset: executed when written 1 after 0 (the maintenance command).
 - 0x1800-0x57FF operation data No. 0-255, 0x40 registers (32 pairs) each: type, position, speed,
   starting and stopping rates, current, ... from +0x00, +0x02, ... (the maker's FAQ 0331 writes No. 0's
-  position at 0x1802). Stored as written and read back; running them (START) is not modelled.
+  position at 0x1802; the rest of the layout is from other public descriptions, not the manual).
+  Stored as written and read back; running them (START) is not modelled.
 Any other address answers exception 02, as does writing a read-only register. Function codes
 03, 06, 08 (sub-function 00h, the echo) and 10h are served; any other answers exception 01.
 
