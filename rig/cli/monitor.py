@@ -8,7 +8,7 @@ import signal
 import sys
 from pathlib import Path
 
-from rig.core.exits import EXIT_FAILED, EXIT_OK, fail
+from rig.core.exits import EXIT_OK, fail
 from rig.monitor.server import is_loopback, make_server, new_token, page_url
 
 DEFAULT_PORT = 8765
@@ -16,22 +16,20 @@ DEFAULT_PORT = 8765
 
 def cmd_monitor(args: argparse.Namespace) -> int:
     """Serve until Ctrl+C. A folder that cannot be (a missing parent, a file) or a port that cannot be
-    had is one message and exit 1; a folder not made yet is waited for."""
+    had (in use, an address not this machine's) is bad input: one message and exit 2; a folder not made
+    yet is waited for."""
     folder = Path(args.dir)
     if folder.exists() and not folder.is_dir():
-        fail(f"{folder} is not a folder (give a dataset folder)")
-        return EXIT_FAILED
+        return fail(f"{folder} is not a folder (give a dataset folder)")
     if not folder.exists() and not folder.parent.is_dir():
-        fail(f"{folder}: neither it nor its parent folder {folder.parent} exists")
-        return EXIT_FAILED
+        return fail(f"{folder}: neither it nor its parent folder {folder.parent} exists")
     token = None if is_loopback(args.host) else new_token()
     try:
         server = make_server(folder, args.host, args.port, token, quiet=not args.verbose)
     except OSError as exc:
         in_use = exc.errno == errno.EADDRINUSE
-        fail(f"cannot serve on {args.host}:{args.port}: {exc.strerror or exc}"
-             + (" (another program uses the port: choose another with --port)" if in_use else ""))
-        return EXIT_FAILED
+        return fail(f"cannot serve on {args.host} port {args.port}: {exc.strerror or exc}"
+                    + (f" (another program uses port {args.port}: choose another with --port)" if in_use else ""))
     # Ctrl+C and SIGTERM stop it, even where the shell started it with SIGINT ignored (a background job of a
     # script inherits that, and Python then raises no KeyboardInterrupt): as `rig run`, it installs its own.
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -52,12 +50,23 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _port(text: str) -> int:
+    """A TCP port number, 0 to 65535 (argparse says so with exit 2 otherwise)."""
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a TCP port (0 to 65535)")
+    return port
+
+
 def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `rig monitor`."""
     p = subparsers.add_parser("monitor", help="a live web page of a dataset folder while `rig run` writes it "
                                               "(or after): progress, state, plots, events; read-only")
     p.add_argument("dir", metavar="DIR", help="dataset folder (it may not exist yet: the run creates it)")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free)")
+    p.add_argument("--port", type=_port, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free)")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1, this machine only); any other address "
                         "requires the access token printed at start")

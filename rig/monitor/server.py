@@ -1,4 +1,5 @@
-"""The monitor's HTTP server: the page, its script and style, and `/api/state` (stdlib http.server only).
+"""The monitor's HTTP server: the page, its script and style, and `/api/state` (stdlib http.server's request
+parsing, over the bounded connections of rig.monitor.front).
 
 Read-only by construction: the only routes are GETs of three package files and of the
 follower's snapshot (rig.monitor.folder); nothing a request says reaches the folder.
@@ -6,25 +7,29 @@ follower's snapshot (rig.monitor.folder); nothing a request says reaches the fol
 Access: on a loopback address anyone on this machine may look, and the Host header must name
 that address (a web page elsewhere cannot reach the monitor through DNS rebinding). On any
 other address a random token, printed at start, is required as `?token=` on every request;
-it is compared in constant time.
+it is compared in constant time. The page served with a token names its script and style sheet
+with the token, so that a browser given the printed address loads them too.
 """
 
 from __future__ import annotations
 
 import hmac
+import io
 import ipaddress
 import json
 import secrets
+import socket
 import threading
 import time
-from functools import partial
 from http import HTTPStatus
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler
 from importlib import resources
 from pathlib import Path
-from urllib.parse import parse_qs, urlsplit
+from typing import Any
+from urllib.parse import parse_qs, quote, urlsplit
 
 from rig.monitor.folder import FolderFollower
+from rig.monitor.front import DEFAULT_LIMITS, BoundedServer, Limits
 
 #: The page's files (package data, rig/monitor/static/): route → (file, content type).
 STATIC = {"/": ("monitor.html", "text/html; charset=utf-8"),
@@ -53,6 +58,17 @@ def new_token() -> str:
     return secrets.token_urlsafe(18)
 
 
+def static_file(route: str, token: str | None) -> bytes:
+    """A page file; the page itself with the token added to its script's and style sheet's addresses."""
+    body = resources.files("rig.monitor").joinpath("static", STATIC[route][0]).read_bytes()
+    if route == "/" and token is not None:
+        for other in STATIC:
+            if other != "/":
+                name = other.lstrip("/")
+                body = body.replace(f'"{name}"'.encode(), f'"{name}?token={quote(token, safe="")}"'.encode())
+    return body
+
+
 class Monitor:
     """The follower shared by every request, read at most every MIN_READ_INTERVAL_S."""
 
@@ -73,11 +89,19 @@ class Monitor:
 
 
 class Handler(BaseHTTPRequestHandler):
+    """One request, whose head rig.monitor.front has read already (HTTP/1.0: one request per connection)."""
+
     server_version = "rig-monitor"
 
-    def __init__(self, *args, monitor: Monitor, token: str | None, quiet: bool, **kwargs):
-        self.monitor, self.token, self.quiet = monitor, token, quiet
-        super().__init__(*args, **kwargs)
+    def __init__(self, sock: socket.socket, address: tuple, server: Any, *, head: bytes, monitor: Monitor,
+                 token: str | None, quiet: bool):
+        self.head, self.monitor, self.token, self.quiet = head, monitor, token, quiet
+        super().__init__(sock, address, server)
+
+    def setup(self) -> None:
+        super().setup()
+        self.rfile.close()
+        self.rfile = io.BytesIO(self.head)
 
     def log_message(self, format: str, *args) -> None:
         if not self.quiet:
@@ -113,8 +137,7 @@ class Handler(BaseHTTPRequestHandler):
         if refusal is not None:
             self._refuse(HTTPStatus.FORBIDDEN, refusal)
         elif url.path in STATIC:
-            name, kind = STATIC[url.path]
-            self._send(HTTPStatus.OK, resources.files("rig.monitor").joinpath("static", name).read_bytes(), kind)
+            self._send(HTTPStatus.OK, static_file(url.path, self.token), STATIC[url.path][1])
         elif url.path == "/api/state":
             try:
                 since = int(query.get("since", ["0"])[0])
@@ -127,16 +150,18 @@ class Handler(BaseHTTPRequestHandler):
             self._refuse(HTTPStatus.NOT_FOUND, "not found")
 
 
-def make_server(folder: Path, host: str, port: int, token: str | None, *,
-                quiet: bool = True) -> ThreadingHTTPServer:
+def make_server(folder: Path, host: str, port: int, token: str | None, *, quiet: bool = True,
+                limits: Limits = DEFAULT_LIMITS) -> BoundedServer:
     """A server (not yet serving) for `folder` on host:port (port 0: a free one); OSError if it cannot bind."""
-    handler = partial(Handler, monitor=Monitor(folder), token=token, quiet=quiet)
-    server = ThreadingHTTPServer((host, port), handler)
-    server.daemon_threads = True
+    monitor = Monitor(folder)
+
+    def handle(sock: socket.socket, address: tuple, head: bytes) -> None:
+        Handler(sock, address, server, head=head, monitor=monitor, token=token, quiet=quiet)
+    server = BoundedServer(host, port, handle, limits)
     return server
 
 
-def page_url(server: ThreadingHTTPServer, token: str | None) -> str:
+def page_url(server: BoundedServer, token: str | None) -> str:
     address, port = server.server_address[:2]
     host = str(address)
     host = f"[{host}]" if ":" in host else host

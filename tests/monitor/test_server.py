@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,7 +22,7 @@ import pytest
 from test_folder import Folder, warm
 
 from rig.cli import monitor as cli
-from rig.core.exits import EXIT_FAILED
+from rig.core.exits import EXIT_BAD_INPUT
 from rig.monitor.server import STATIC, is_loopback, make_server, page_url
 from rig_process import HANG_S
 
@@ -112,6 +113,22 @@ def test_with_a_token_every_request_needs_it(folder):
             assert get(base + route + ("&" if "?" in route else "?") + "token=s3cret")[0] == 200
 
 
+def test_with_a_token_the_page_loads_its_script_and_style_sheet(folder):
+    """What a browser does with the printed address (issue 30, item 7): every file the page names, resolved
+    against the page's address, is served; the script's own request carries the token from the address."""
+    for base in serve(folder.path, token="s3/cr+t"):
+        page = base + "/?token=" + urllib.parse.quote("s3/cr+t", safe="")
+        status, _, body = get(page)
+        assert status == 200
+        named = re.findall(r'(?:src|href)="([^"]+)"', body.decode())
+        assert len(named) == 2
+        for name in named:
+            status, headers, _ = get(urllib.parse.urljoin(page, name))
+            assert status == 200, name
+        script = get(urllib.parse.urljoin(page, named[-1]))[2].decode()
+        assert 'q.set("token", token)' in script and 'fetch("api/state?"' in script
+
+
 def test_only_loopback_addresses_go_without_a_token():
     assert all(is_loopback(h) for h in ("127.0.0.1", "127.0.0.2", "::1", "[::1]", "localhost"))
     assert not any(is_loopback(h) for h in ("0.0.0.0", "192.168.1.5", "::", "lab-pc"))
@@ -124,20 +141,28 @@ def run_cli(*argv: str) -> int:
     return args.func(args)
 
 
-def test_a_port_in_use_is_one_message_and_exit_1(tmp_path, capsys):
+def test_a_port_in_use_is_bad_input_one_message_naming_the_port_and_exit_2(tmp_path, capsys):
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
-        assert run_cli(str(tmp_path), "--port", str(taken.getsockname()[1])) == EXIT_FAILED
+        port = taken.getsockname()[1]
+        assert run_cli(str(tmp_path), "--port", str(port)) == EXIT_BAD_INPUT
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot serve on 127.0.0.1" in err and "--port" in err
+    assert err.count("\n") == 1 and f"cannot serve on 127.0.0.1 port {port}" in err
+    assert f"another program uses port {port}" in err and "--port" in err
+
+
+def test_a_port_out_of_range_is_refused_by_the_parser(capsys):
+    with pytest.raises(SystemExit) as stop:
+        run_cli(".", "--port", "70000")
+    assert stop.value.code == EXIT_BAD_INPUT and "not a TCP port" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("where, message", [("no/such/run", "neither it nor its parent"),
                                             ("file.txt", "is not a folder")])
-def test_a_folder_that_cannot_be_is_one_message_and_exit_1(tmp_path, capsys, where, message):
+def test_a_folder_that_cannot_be_is_one_message_and_exit_2(tmp_path, capsys, where, message):
     (tmp_path / "file.txt").write_text("x")
-    assert run_cli(str(tmp_path / where), "--port", "0") == EXIT_FAILED
+    assert run_cli(str(tmp_path / where), "--port", "0") == EXIT_BAD_INPUT
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
 
