@@ -8,6 +8,10 @@ rig.physics.peak_fit locates the peak in arm coordinates, and from then on the e
 every arm move offset by it (rig.acquisition.moves.Mover.arm_zero_deg), so the recorded angles are
 relative to the sample as mounted. The stage's axis in the plane of incidence is parallel to the
 arm's azimuth axis, so one incidence fixes the offset for all.
+
+A scan is tens of moves and captures, minutes on a real rig: the engine is called before each step
+(`before_step`), to report progress and to honour a stop request there (rig.acquisition.stopping), so
+that a Ctrl+C ends the scan within one step, not after it (issue 30).
 """
 
 from __future__ import annotations
@@ -60,13 +64,20 @@ def scan_grid_deg(spec: SpecularAlignment) -> tuple[np.ndarray, np.ndarray]:
     return az, polar
 
 
+def _unobserved(step: int, steps: int) -> None:
+    """`before_step` of a scan nobody watches or stops (a test's)."""
+
+
 def _scan(where: str, spec: SpecularAlignment, mover: Mover, capture: Callable[[], PointCapture],
-          event: Callable[..., None], nominal: np.ndarray, centre: tuple[float, float]) -> LogPeak:
-    """One scan around `centre` (arm offsets from `nominal`, degrees); its peak in offsets from `nominal`."""
+          event: Callable[..., None], nominal: np.ndarray, centre: tuple[float, float],
+          before_step: Callable[[int, int], None]) -> LogPeak:
+    """One scan around `centre` (arm offsets from `nominal`, degrees); its peak in offsets from `nominal`.
+    `before_step(k, n)` before step k of n (from 0) may raise to end the scan there."""
     stage_v, stage_n, arm_a, arm_p = (float(v) for v in nominal)
     d_az, d_polar = scan_grid_deg(spec)
     luminance, at_az, at_polar, at_s = (np.empty(d_az.size) for _ in range(4))
     for k, (da, dp) in enumerate(zip(d_az + centre[0], d_polar + centre[1])):
+        before_step(k, d_az.size)
         mover.move((stage_v, stage_n, arm_a + float(da), arm_p + float(dp)))
         _, _, read_az, read_polar = mover.read_back()         # where the encoders say the arm came to rest
         at_az[k], at_polar[k], at_s[k] = read_az - arm_a, read_polar - arm_p, mover.dev.clock.now()
@@ -85,8 +96,10 @@ def _scan(where: str, spec: SpecularAlignment, mover: Mover, capture: Callable[[
 
 
 def align_on_specular(spec: SpecularAlignment, mover: Mover, capture: Callable[[], PointCapture],
-                      event: Callable[..., None]) -> ArmAlignment:
+                      event: Callable[..., None], before_step: Callable[[int, int], None] = _unobserved
+                      ) -> ArmAlignment:
     """Scan, fit, check, and return the arm's offsets; the mover is left uncorrected (the caller applies them).
+    `before_step(k, n)` is called before step k of n of each scan (module docstring).
 
     A peak found more than half a step from the scan's centre is scanned once more, centred on it: the
     log of a real lobe is a quadratic only near its top, so a grid centred on the peak fits it best.
@@ -96,9 +109,9 @@ def align_on_specular(spec: SpecularAlignment, mover: Mover, capture: Callable[[
                               mover.position).as_array()
     if not np.all(np.isfinite(nominal)):
         raise AlignmentError(f"{where}: the mirror geometry is outside the axes' limits")
-    peak = _scan(where, spec, mover, capture, event, nominal, (0.0, 0.0))
+    peak = _scan(where, spec, mover, capture, event, nominal, (0.0, 0.0), before_step)
     if max(abs(peak.x0), abs(peak.y0)) > spec.step_deg / 2 and math.hypot(peak.x0, peak.y0) <= spec.max_offset_deg:
-        peak = _scan(where, spec, mover, capture, event, nominal, (peak.x0, peak.y0))
+        peak = _scan(where, spec, mover, capture, event, nominal, (peak.x0, peak.y0), before_step)
     offset = math.hypot(peak.x0, peak.y0)
     if offset > spec.max_offset_deg:
         raise AlignmentError(f"{where}: the peak lies {offset:.3f}° from the nominal mirror direction, beyond "
@@ -108,12 +121,14 @@ def align_on_specular(spec: SpecularAlignment, mover: Mover, capture: Callable[[
 
 
 def align_run(spec: SpecularAlignment, manifest: dict[str, Any], mover: Mover, capture: Callable[[], PointCapture],
-              event: Callable[..., None], update_manifest: Callable[..., None]) -> ArmAlignment:
-    """Align the arm for a run and apply it to `mover`: by a scan, or as the run being resumed was aligned
-    (its manifest's `alignment`), so that every row of a dataset is relative to the same zero."""
+              event: Callable[..., None], update_manifest: Callable[..., None],
+              before_step: Callable[[int, int], None] = _unobserved) -> ArmAlignment:
+    """Align the arm for a run and apply it to `mover`: by a scan (`before_step(k, n)` before each step),
+    or as the run being resumed was aligned (its manifest's `alignment`), so that every row of a dataset is
+    relative to the same zero."""
     saved = manifest.get("alignment")
     if saved is None:
-        found = align_on_specular(spec, mover, capture, event)
+        found = align_on_specular(spec, mover, capture, event, before_step)
         update_manifest(alignment=found.as_dict())
     else:
         found = ArmAlignment.from_dict(saved)

@@ -38,6 +38,7 @@ from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
 from rig.acquisition.summary import run_summary
 from rig.acquisition.suspenders import UNVOUCHED, Suspender, device_silent, install
+from rig.acquisition.tending import tended
 from rig.acquisition.warmup import warm_up
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
@@ -71,11 +72,8 @@ class Runner:
                  source: PointSource | None = None):
         """`done_rows`: rows already in the dataset (a resume); their points are not measured again.
         `source`: where more points come from once the plan's are measured (an adaptive campaign)."""
-        self.campaign = campaign
-        self.plan = plan
-        self.dev = devices
-        self.writer = writer
-        self.rig = rig
+        self.campaign, self.plan, self.writer, self.rig = campaign, plan, writer, rig
+        self.dev = devices = tended(given := devices)     # runs of meter readings and frames keep the lamp fed
         self.progress: ProgressCallback = progress or (lambda p: None)
         self.source = source
         self.settings = campaign.capture.settings()
@@ -97,7 +95,7 @@ class Runner:
         constants = RowConstants(g.angle_u_deg, lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg),
                                  campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel)
         self.ledger = Ledger(writer, done_rows, constants, ill.correction == "interpolate", self.eta, self.rig_time)
-        devices.route_events(self._device_event)       # from here on a driver's retry is reported
+        given.route_events(self._device_event)         # from here on a driver's retry is reported
         self.attenuation = attenuation_for(devices, rig.attenuator, self._device_event)
         self.mover = Mover(devices, rig)
         self.eta.plan(point_estimates_s(plan, self.mover.position, rig.axes, NOMINAL_CAPTURE_S), self.done_ids)
@@ -229,12 +227,16 @@ class Runner:
     def _align(self) -> None:
         """Campaign `alignment`: the arm aligned on the sample's specular peak (rig.acquisition.alignment)."""
         if (spec := self.campaign.alignment) is not None:
-            self._report("aligning the arm on the specular peak")
             found = align_run(spec, self.writer.manifest, self.mover, self._capture, self._event,
-                              self.writer.update_manifest)
+                              self.writer.update_manifest, self._alignment_step)
             g = self.rig.geometry
             u_view = lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg, found.u_deg)
             self.ledger.constants = replace(self.ledger.constants, lobe_view_u_deg=u_view)
+
+    def _alignment_step(self, step: int, steps: int) -> None:
+        """Before each step of an alignment scan: progress, and a stop request honoured (within one step)."""
+        self._report(f"aligning the arm on the specular peak: step {step + 1} of {steps}")
+        self.requests.check_stop()
 
     def _capture(self) -> PointCapture:
         return reduce_through(*acquire_through(self.attenuation, self.dev.camera, self.settings, self.darks))

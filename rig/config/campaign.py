@@ -41,6 +41,7 @@ from rig.config.capture import (
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml, short
 from rig.config.rigfile import RigConfig
 from rig.config.strict import StrictModel
+from rig.config.watchdog import watchdog_problems
 from rig.physics.brdf_models import MODELS
 
 
@@ -316,6 +317,8 @@ def check_campaign_for_rig(campaign: Campaign, rig: RigConfig, source: str | Pat
       alone with a probability of about 6e-7 per reading (normal tails), i.e. less than
       once in a thousand campaigns of a few hundred readings; below it, a false jump
       per campaign becomes likely (3σ: 0.3 % per reading).
+    - No device exchange the campaign asks for blocks longer than the lamp supply's watchdog allows
+      (rig.config.watchdog): the lamp would go out in the middle of the run.
     """
     problems = []
     sensor_px = min(rig.camera.width_px, rig.camera.height_px)
@@ -330,6 +333,7 @@ def check_campaign_for_rig(campaign: Campaign, rig: RigConfig, source: str | Pat
                         f"{needed:.3g}, {DRIFT_LIMIT_SIGMAS:g}× the meter's noise on the difference of two E⊥ "
                         f"readings (repeatability {rig.meter.repeatability_rel:g} of rig {rig.name}, "
                         f"{campaign.illuminance.readings} readings each); raise it or illuminance.readings")
+    problems += watchdog_problems(campaign.capture.settings(), rig)
     if problems:
         raise CampaignError(f"{source}: campaign does not fit the rig:\n  " + "\n  ".join(problems))
 

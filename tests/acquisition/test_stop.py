@@ -208,6 +208,28 @@ def test_stop_mid_series_finishes_the_point_in_flight_then_brackets_and_parks(tm
     assert len(end.rows()) == len(pending)
 
 
+def test_stop_during_the_alignment_scan_ends_it_before_the_next_step(tmp_path):
+    """Ctrl+C in the specular-peak alignment (a 7 × 7 scan: tens of rig seconds of moves and captures; minutes on
+    hardware) is honoured before the next step, not once the scan is done (issue 30); then parked, lamp off, axes
+    still. The request is made as the SIGINT handler makes it (`request_stop`), as step 10 begins."""
+    asked: list[float] = []
+
+    def ctrl_c_at_step_10(peers, runner, p):
+        if p.message.endswith("step 10 of 51") and not asked:
+            asked.append(p.rig_time_s)
+            runner.request_stop("SIGINT")
+    end = run(tmp_path, campaign(alignment={"theta_i_deg": 40, "steps": 7}), on_progress=ctrl_c_at_step_10)
+    assert end.status == "interrupted", end.error
+    ev = end.events()
+    stops = [e for e in ev if e["event"] == "stop_requested"]
+    assert len(stops) == 1 and stops[0]["rig_time_s"] == pytest.approx(asked[0], abs=1e-6)    # not one step more
+    kinds = end.kinds()
+    assert "alignment_scan" not in kinds and "aligned" not in kinds and "illuminance" not in kinds
+    assert kinds.index("stop_requested") < kinds.index("parked") and end.first("interrupted")["graceful"] is True
+    assert kinds[-1] == "safe_state" and ev[-1]["lamp_off"] and not end.lamp_on and not end.moving
+    assert "alignment" not in end.manifest() and end.rows() == []      # a resumed run scans again
+
+
 def test_second_request_stops_the_axes_inside_the_park(tmp_path):
     """Ctrl+C again while parking: the move is cut short, no `parked`, lamp off, axes still."""
     def abort_when_parking(peers, runner, p):
@@ -367,6 +389,26 @@ def test_rig_run_sigint_during_warm_up(tmp_path):
     lamp_on = next(e for e in ev if e["event"] == "lamp_on")["rig_time_s"]
     assert next(e for e in ev if e["event"] == "stop_requested")["rig_time_s"] < lamp_on + 3000
     assert "parked" in kinds and kinds[-1] == "safe_state" and ev[-1]["lamp_off"]
+    assert json.loads((out / "dataset.json").read_text())["status"] == "interrupted"
+
+
+def test_rig_run_sigint_during_the_alignment_scan(tmp_path):
+    """A real SIGINT once the warm-up is over, while the arm scans for the specular peak (a 9 × 9 scan: about
+    40 rig seconds, over a second of wall time at the pace below): the scan ends unfinished, exit 130, parked,
+    lamp off."""
+    data = yaml.safe_load(CAMPAIGN.read_text())
+    data["lamp"] = {"warmup_min_s": 0, "warmup_check_s": 1, "warmup_stable_rel": 0.05}
+    data["alignment"] = {"theta_i_deg": 40, "steps": 9}
+    f = tmp_path / "aligned.yaml"
+    f.write_text(yaml.safe_dump(data))
+    out = tmp_path / "ds"
+    proc = rig_run(f, out, RIG_SIM_PACE="0.03")
+    wait_for(proc, out, lambda text: '"warmup_stable"' in text, "the end of the warm-up")
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=60) == 130, proc.stderr.read()
+    kinds = [e["event"] for e in events_of(out)]
+    assert "stop_requested" in kinds and "alignment_scan" not in kinds and "aligned" not in kinds
+    assert "parked" in kinds and kinds[-1] == "safe_state" and events_of(out)[-1]["lamp_off"]
     assert json.loads((out / "dataset.json").read_text())["status"] == "interrupted"
 
 
