@@ -14,6 +14,7 @@ import pytest
 from rig.config.rigfile import RigConfig, RigConfigError, load_rig_config
 from rig.core.errors import DeviceError
 from rig.drivers.delta_sm import DeltaSM
+from rig.drivers.interfaces import OutputLoss
 from rig.drivers.retry import RetryPolicy
 from rig.physics.brdf_models import get_model
 from rig.simulators.delta_sm_peer import DeltaSMPeer
@@ -353,3 +354,45 @@ def test_without_the_voltage_limit_the_driver_refuses_to_connect(world):
         with pytest.raises(DeviceError, match=r"set lamp.voltage_limit_v in the rig file"):
             DeltaSM.from_rig(clock=world.clock, settings=settings, address=big.url, timeout_s=FAST)
         assert list(big.received) == []                            # nothing was sent
+
+
+# -- why the lamp gets no current, as the supply tells it ----------------------------------------------------------
+def test_an_open_interlock_or_a_remote_shut_down_is_named_and_reported_once(lamp, peer, events):
+    lamp.set_current(4.17)
+    lamp.set_output(True)
+    assert lamp.output_loss() is None                              # on and nothing blocks: the lamp is to blame
+    peer.set_interlock(True)
+    peer.warn("Interlock open")
+    assert lamp.measure_current_a() == 0.0 and lamp.output_is_on()  # the output setting stays on
+    loss = lamp.output_loss()
+    assert loss == OutputLoss("the supply blocks its output: interlock open (the supply's interlock input) "
+                              "(warnings: 301,Interlock open)", restart=False)
+    assert lamp.output_loss().reason.endswith("interlock input)")   # the warning was read once
+    ask(peer, "SYSTem:RSD ON")
+    assert "interlock open (the supply's interlock input); remote shut-down (RSD) active" in lamp.output_loss().reason
+    assert [f["status_a"] for kind, f in events if kind == "lamp_output_blocked"] == [8192 + 2048, 8192 + 2048 + 4096]
+    peer.set_interlock(False)
+    ask(peer, "SYSTem:RSD OFF")
+    assert lamp.measure_current_a() == pytest.approx(4.17, abs=1e-12) and lamp.output_loss() is None
+
+
+def test_an_output_switched_off_at_the_supply_is_not_switched_on_again_by_rig(lamp, peer):
+    lamp.set_output(True)
+    ask(peer, "OUTPut OFF")                                        # the front panel, the web page, another client
+    loss = lamp.output_loss()
+    assert loss is not None and not loss.restart and "switched off at the supply, not by rig" in loss.reason
+    lamp.set_output(False)
+    assert lamp.output_loss() is None                              # rig switched it off: nothing was lost
+
+
+def test_an_output_the_watchdog_switched_off_may_be_switched_on_again(guarded, peer, world, events):
+    guarded.events = lambda kind, **fields: events.append((kind, fields))
+    guarded.set_current(4.17)
+    guarded.set_output(True)
+    world.clock.advance(0.6)                                       # frozen longer than the 0.5 s watchdog
+    peer.check_watchdog()
+    loss = guarded.output_loss()                                   # noticed here, before any feed
+    assert loss is not None and loss.restart and "communication watchdog switched the output off" in loss.reason
+    assert [kind for kind, _ in events] == ["watchdog_expired"] and peer.watchdog_armed
+    guarded.set_output(True)
+    assert guarded.output_loss() is None and peer.output_on

@@ -1,6 +1,9 @@
 """The SM15K peer against the manual's own examples ("Ethernet & Sequencer Programming SM15K", rev. July
 2021, via github keklikyusuf/DeltaElektronika), in memory: `answer()` is what the TCP server calls per line."""
 
+import re
+import socket
+
 import pytest
 
 from rig.config.rigfile import RigConfig
@@ -102,3 +105,89 @@ def test_rst_per_manual_table_5_1(peer):
     ask(peer, "*RST")
     assert (peer.voltage_v, peer.current_a, peer.remote) == (0.0, 0.0, {"CV": True, "CC": True, "CP": True})
     assert peer.output_on                                  # not in the manual's table: left as it was
+
+
+# -- the rest of the manual's command list ------------------------------------------------------------------------
+def test_maxima_step_sizes_and_the_large_model_from_its_name(world):
+    big = DeltaSMPeer(world, model="SM500-CP-90")
+    assert ask(big, "SOUR:VOLT:MAX?", "SOUR:CURR:MAX?", "SOUR:POW:MAX?", "SOUR:CURR:NEG:MAX?",
+               "SOUR:POW:NEG:MAX?") == ["500", "90", "15000", "-90", "-15000"]
+    assert ask(big, "SOUR:VOLT:STE?") == [f"{500 / 65535:.15e}"]                 # §5.2.12: 15 decimals
+    assert ask(big, "SYST:LIM:VOLT?", "SYST:LIM:CURR:NEG?") == ["500.0000", "-90.0000"]
+
+
+def test_negative_and_power_setpoints_and_limits(peer):
+    ask(peer, "*RST", "SOUR:CURR:NEG -5", "SOUR:POW 100", "SOUR:POW:NEG -100")
+    assert ask(peer, "SOUR:CURR:NEG?", "SOUR:POW?", "SOUR:POW:NEG?") == ["-5.0000", "100.0000", "-100.0000"]
+    assert ask(peer, "SOUR:CURR:NEG 5", "SYST:ERR?") == [None, "-222,Data out of range"]
+    ask(peer, "SYST:LIM:CURR:NEG -2,ON")
+    assert ask(peer, "SOUR:CURR:NEG?", "SYST:LIM:CURR:NEG?") == ["-2.0000", "-2.0000"]     # brought to the limit
+
+
+def test_remote_shut_down_and_the_interlock_block_the_output_and_show_in_register_a(peer, world):
+    ask(peer, "*RST", "SOUR:VOLT 14", "SOUR:CURR 4.17", "OUTP ON")
+    world.clock.sleep(2.0)
+    assert ask(peer, "STAT:REG:A?", "STAT:REG:B?") == [str(8192 + 2), "7"]       # B: CV, CC, CP remote after *RST
+    ask(peer, "SYSTem:RSD ON")
+    assert world.lamp.relative_output() == 0.0
+    assert ask(peer, "STAT:REG:A?", "SYST:RSD?", "SYST:RSD:STAtus?", "OUTP?") == [str(8192 + 4096), "1", "1", "1"]
+    ask(peer, "*RST")                                      # table 5.1: RSD off
+    assert ask(peer, "SYST:RSD?") == ["0"]
+    ask(peer, "SOUR:VOLT 14", "SOUR:CURR 4.17")
+    peer.set_interlock(True)
+    assert world.lamp.relative_output() == 0.0 and ask(peer, "STAT:REG:A?") == [str(8192 + 2048)]
+    peer.set_interlock(False)
+    assert world.lamp.filament_current_a() == pytest.approx(4.17, abs=1e-12)
+
+
+def test_warnings_queue_like_errors(peer):
+    assert ask(peer, "SYSTem:WARning?") == ["0,None"]                           # §5.6.8
+    peer.warn("Interlock open")
+    assert ask(peer, "SYST:WARN?", "SYST:WARN?") == ["301,Interlock open", "0,None"]
+
+
+def test_the_ampere_hour_instrument_integrates_the_current(peer, world):
+    ask(peer, "*RST", "SOUR:VOLT 14", "SOUR:CURR 4.17", "OUTP ON")
+    assert ask(peer, "MEAS:INS AH,STATE?", "MEAS:INS AH,POS,TOTAL?") == ["OFF", f"{0:.15e}"]
+    world.clock.sleep(5.0)
+    ask(peer, "MEASure:INStrument AH,STATE,ON")
+    world.clock.sleep(1800.0)
+    total, hours, seconds, high = ask(peer, "MEAS:INS AH,POS,TOTAL?", "MEAS:INS AH,TIMEHR?", "MEAS:INS AH,TIMESEC?",
+                                      "MEAS:INS AH,POS,IMAX?")
+    assert float(total) == pytest.approx(4.17 / 2, rel=1e-6) and re.fullmatch(r"\d\.\d{15}e[+-]\d\d", total)
+    assert (hours, seconds, high) == ("0.500", "1800.0", "4.1700")
+    assert ask(peer, "MEAS:INS AH,BOGUS?", "SYST:ERR?") == [None, "-224,Illegal parameter value"]
+
+
+def test_clock_password_user_data_and_front_panel(peer, world):
+    assert ask(peer, "SYST:TIM?", "SYST:DAT?") == ["UNKNOWN", "UNKNOWN"]           # §5.6.6
+    ask(peer, "SYST:TIM 9,10,0", "SYST:DAT 2021,9,8")
+    world.clock.sleep(65.0)
+    assert ask(peer, "SYST:TIM?", "SYST:DAT?") == ["9:11:05", "2021-9-8"]
+    assert ask(peer, "SYST:TIM 24,0,0", "SYST:ERR?") == [None, "-222,Data out of range"]
+    assert ask(peer, "SYST:PAS:STA?") == ["0"]
+    ask(peer, "SYST:PAS DEFAULT,secret", "*SAV")
+    assert ask(peer, "SYST:PAS:STA?", "SYST:ERR?") == ["1", "-221,Settings conflict"]    # *SAV needs it now
+    ask(peer, "*PUD Battery Simulator", "SYST:FRO ON")
+    assert ask(peer, "*PUD?", "SYST:FRO?", "SYST:FRO:STA?", "SYST:ERR?") == ["Battery Simulator", "1", "1", "0,None"]
+
+
+def test_the_terminator_ends_the_replies(peer):
+    ask(peer, "SYST:COMM:TER CRLF")
+    assert peer.respond(b"SYST:COMM:TER?") == b"CRLF\r\n"
+    ask(peer, "SYST:COMM:TER LF")
+    assert peer.respond(b"OUTP?") == b"0\n"
+
+
+def test_a_line_too_long_is_dropped_with_an_error(peer):
+    """Over TCP: 8 MB without a terminator are not held (the peer keeps at most MAX_LINE bytes of a line), the
+    terminator ends the dropped line with an error, and the next line is answered."""
+    with peer:
+        host, port = peer.url.removeprefix("socket://").rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=5.0) as sock:
+            chunk = b"X" * 65536
+            for _ in range(128):
+                sock.sendall(chunk)
+            sock.sendall(b"\nSYST:ERR?\n")
+            reply = sock.makefile("rb").readline()
+    assert reply == b"-223,Too much data\n" and peer.MAX_LINE <= 4096
