@@ -18,6 +18,7 @@ port is opened with an exclusive lock.
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -79,9 +80,14 @@ class ServedRig:
             peer.stop()
 
 
-def write_rig_file(config: RigConfig, path: Path) -> None:
-    """Write the client rig file atomically (a client polling for it never reads half of it), without the
-    `simulation` section: the truths of the served world are not the client's to know."""
+def write_rig_file(config: RigConfig, path: Path) -> tuple[int, int]:
+    """Write the client rig file at `path`, which must not exist, without the `simulation` section (the
+    truths of the served world are not the client's to know); its (device, inode), which `remove_rig_file`
+    checks.
+
+    Written whole to a temporary file, then hard-linked to `path`: a client polling for it never reads half
+    of it, and the link is exclusive — FileExistsError if anything at all is at `path` (a file, a dangling
+    symlink, a device, a FIFO), which is never replaced."""
     text = ("# Written by `rig sim serve`: the simulated rig served on loopback, driven like hardware.\n"
             "# It is valid while that server runs.\n"
             + yaml.safe_dump(config.model_dump(mode="json", exclude={"simulation"}), sort_keys=False))
@@ -89,7 +95,20 @@ def write_rig_file(config: RigConfig, path: Path) -> None:
     try:
         with os.fdopen(fd, "w") as out:
             out.write(text)
-        os.replace(tmp, path)
-    except BaseException:
+            out.flush()
+            written = os.fstat(out.fileno())
+        os.link(tmp, path)
+    finally:
         Path(tmp).unlink(missing_ok=True)
-        raise
+    return written.st_dev, written.st_ino
+
+
+def remove_rig_file(path: Path, written: tuple[int, int]) -> None:
+    """Remove the rig file at `path` if it is still the one `write_rig_file` wrote (same device and inode):
+    whatever has replaced it since is someone else's."""
+    try:
+        found = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if stat.S_ISREG(found.st_mode) and (found.st_dev, found.st_ino) == written:
+        path.unlink()

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
 import signal
 import socket
+import stat
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,9 +23,10 @@ import pytest
 import yaml
 
 from repo_paths import CAMPAIGNS, TEST_CAMPAIGNS
+from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import load_rig_config
-from rig.simulators.served import PAPER_RM1
+from rig.simulators.served import PAPER_RM1, ServedRig
 from rig_process import HANG_S, pending_points, start_rig, wait_until
 
 CAMPAIGN = TEST_CAMPAIGNS / "served.yaml"
@@ -149,3 +152,65 @@ def test_a_rig_file_in_a_missing_folder_is_refused(tmp_path):
     proc = start_rig("sim", "serve", "--rig-file", str(tmp_path / "no" / "r.yaml"))
     _, err = proc.communicate(timeout=HANG_S)
     assert proc.returncode == 2 and "does not exist" in err, err
+
+
+# -- issue 30 item 2: nothing that is already at --rig-file is overwritten or removed ---------------------------
+
+def _occupy(path: Path, kind: str) -> None:
+    """Put something of `kind` at `path`: what a lab may have there (its own rig file, a link, a pipe)."""
+    if kind == "file":
+        path.write_text("name: the lab's own rig file\n")
+    elif kind == "symlink":
+        path.parent.joinpath("target.yaml").write_text("kept\n")
+        path.symlink_to("target.yaml")
+    elif kind == "dangling symlink":
+        path.symlink_to("nowhere.yaml")
+    elif kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.mkdir()
+
+
+def _must_not_serve(self: ServedRig) -> None:
+    raise AssertionError("refused before serving: nothing may be written to the path")
+
+
+def _snapshot(path: Path) -> tuple:
+    found = os.lstat(path)
+    content = path.read_text() if stat.S_ISREG(found.st_mode) else None
+    return found.st_mode, found.st_ino, found.st_mtime_ns, content, os.readlink(path) if path.is_symlink() else None
+
+
+@pytest.mark.parametrize("kind, what", [("file", "a file"), ("symlink", "a symbolic link"),
+                                        ("dangling symlink", "a symbolic link"), ("fifo", "a FIFO"),
+                                        ("folder", "a folder")])
+def test_whatever_is_at_the_rig_file_path_is_refused_and_left_alone(tmp_path, capsys, monkeypatch, kind, what):
+    """Before: the path was replaced by the served rig file (a FIFO or a device became a regular file), then
+    removed on exit."""
+    monkeypatch.setattr(ServedRig, "start", _must_not_serve)
+    path = tmp_path / "rig.yaml"
+    _occupy(path, kind)
+    before = _snapshot(path)
+    assert main(["sim", "serve", "--rig-file", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rig: error: --rig-file {path}: {what} is already there"), err
+    assert _snapshot(path) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["rig.yaml"] + (["target.yaml"] * (kind == "symlink")))
+
+
+def test_only_the_file_it_wrote_is_removed_on_exit(tmp_path):
+    """The server removes its own rig file on exit, not one that has replaced it since (same name, other inode)."""
+    rig_file = tmp_path / "served.yaml"
+    server = start_rig("sim", "serve", "--rig-file", str(rig_file))
+    try:
+        wait_until(rig_file.exists, server, "the served rig file")
+        assert load_rig_config(rig_file).devices.lamp.address.startswith("socket://127.0.0.1:")
+        assert [p.name for p in tmp_path.iterdir()] == ["served.yaml"]      # no temporary file left beside it
+        replacement = tmp_path / "edited.yaml"
+        replacement.write_text("name: mine now\n")
+        replacement.replace(rig_file)                                        # the lab's edit, saved over it
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.communicate(timeout=HANG_S)
+    assert server.returncode == 0
+    assert rig_file.read_text() == "name: mine now\n"
