@@ -130,8 +130,8 @@ def loo_curvature(mesh: Delaunay, log_f: np.ndarray, u_rel: np.ndarray, mirror: 
         if spread > 0:
             kappa[k] = 2 * excess / spread
     known = np.where(np.isfinite(kappa), kappa, 0.0)
-    for k in np.flatnonzero(~np.isfinite(kappa)):
-        kappa[k] = float(known[rings[k]].max()) if len(rings[k]) else 0.0
+    for j in np.flatnonzero(~np.isfinite(kappa)):
+        kappa[j] = float(known[rings[j]].max()) if len(rings[j]) else 0.0
     return kappa
 
 
