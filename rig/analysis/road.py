@@ -39,14 +39,18 @@ is read from the predictor's `extrapolated` flags and said in plain words by `ex
 from __future__ import annotations
 
 import json
+import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rig import __version__
 from rig.analysis.prediction import Predictor
+from rig.data.output_folder import new_file
 
 #: EN 1436 "30 m" geometry (ASTM E1710-18 §1.2): entrance 88.76°, observation elevation 2.29°; same azimuth.
 R_L_THETA_I_DEG = 88.76
@@ -152,16 +156,24 @@ def r_table_angles_deg(phi_o_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray, 
     return theta_i, phi_o_deg + 180.0 - beta, R_TABLE_THETA_O_DEG, phi_o_deg
 
 
-def classify(value: float, limits: Mapping[str, float]) -> str:
-    """The class whose lower limit is the highest one ≤ value (limits listed in increasing order)."""
+def classify(value: float, limits: Mapping[str, float]) -> str | None:
+    """The class whose lower limit is the highest one ≤ value (limits listed in increasing order); None for a
+    value that is not a number (a quantity the predictor leaves undefined)."""
+    if math.isnan(value):
+        return None
     passed = [name for name, lower in limits.items() if value >= lower]
     return passed[-1] if passed else next(iter(limits))
 
 
 def classes_within(value: float, u: float, limits: Mapping[str, float], k: float = CLASS_K) -> list[str]:
-    """Every class that value ± k·u reaches, in order."""
+    """Every class that value ± k·u reaches, in order: all of them when u is unknown or infinite, none when the
+    value is not finite."""
     names = list(limits)
-    lo, hi = names.index(classify(value - k * u, limits)), names.index(classify(value + k * u, limits))
+    if not math.isfinite(value):
+        return []
+    if not math.isfinite(u):
+        return names
+    lo, hi = (names.index(classify(value + sign * k * u, limits) or names[0]) for sign in (-1, 1))
     return names[lo:hi + 1]
 
 
@@ -171,6 +183,11 @@ def road_quantities(predictor: Predictor, *, phi_o_deg: float = 0.0, n: int = 96
     phi_o_deg: the observer's azimuth in the sample's frame (the traffic direction); matters only for
     anisotropic samples. n: Gauss–Legendre order of the two integrals (2n² predictions each).
     """
+    with np.errstate(all="ignore"):      # degenerate predictions (0/0, overflow) become null in road.json
+        return _road_quantities(predictor, phi_o_deg, n)
+
+
+def _road_quantities(predictor: Predictor, phi_o_deg: float, n: int) -> RoadQuantities:
     rl = predictor.predict(R_L_THETA_I_DEG, phi_o_deg, R_L_THETA_O_DEG, phi_o_deg)
     cos_rl = np.cos(np.radians(R_L_THETA_I_DEG))
     qd = incidence_integral(predictor, QD_THETA_O_DEG, phi_o_deg, 90.0, cosine=True, scale=MCD / np.pi, n=n)
@@ -237,7 +254,36 @@ def extrapolation_note(q: RoadQuantities) -> str:
 
 
 def road_json(q: RoadQuantities) -> dict:
-    """The content of road.json: the keys of the issue first, then classes, uncertainties and geometry."""
+    """The content of road.json: the keys of the issue first, then classes, uncertainties and geometry.
+
+    JSON has no NaN or infinity: a quantity the predictor leaves undefined (0/0 on an all-zero sample, an
+    overflow at 1e300, an undetermined parameter's infinite u) is written as null, and `undefined` lists them."""
+    document = _road_document(q)
+    undefined: list[str] = []
+    document = _nulls(document, "", undefined)
+    if undefined:
+        document["undefined"] = {"quantities": list(dict.fromkeys(undefined)), "note": UNDEFINED_NOTE}
+    return document
+
+
+#: road.json's word on the quantities written as null.
+UNDEFINED_NOTE = ("not finite (division by zero, overflow or an undetermined model parameter), written as null; "
+                  "classes that depend on them are null")
+
+
+def _nulls(value: Any, key: str, undefined: list[str]) -> Any:
+    """`value` with every float that is not finite replaced by None; the dotted keys of those in `undefined`."""
+    if isinstance(value, float) and not math.isfinite(value):
+        undefined.append(key)
+        return None
+    if isinstance(value, dict):
+        return {k: _nulls(v, f"{key}.{k}" if key else k, undefined) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_nulls(v, key, undefined) for v in value]
+    return value
+
+
+def _road_document(q: RoadQuantities) -> dict:
     s1_classes = {family: classify(q.S1, limits) for family, limits in S1_CLASSES.items()}
     return {
         "R_L_mcd_m2_lx": q.R_L_mcd_m2_lx, "u_R_L_mcd_m2_lx": q.u_R_L_mcd_m2_lx,
@@ -250,7 +296,7 @@ def road_json(q: RoadQuantities) -> dict:
         "surface_classes": s1_classes,
         "surface_classes_within_k2": {family: classes_within(q.S1, q.u_S1, limits)
                                       for family, limits in S1_CLASSES.items()},
-        "standard_Q0": {family: STANDARD_Q0[name] for family, name in s1_classes.items()},
+        "standard_Q0": {family: STANDARD_Q0[name] if name else None for family, name in s1_classes.items()},
         "marking_classes": {"R_L": classify(q.R_L_mcd_m2_lx, R_L_CLASSES), "Qd": classify(q.Qd.value, QD_CLASSES)},
         "marking_classes_within_k2": {"R_L": classes_within(q.R_L_mcd_m2_lx, q.u_R_L_mcd_m2_lx, R_L_CLASSES),
                                       "Qd": classes_within(q.Qd.value, q.Qd.u, QD_CLASSES)},
@@ -264,11 +310,15 @@ def road_json(q: RoadQuantities) -> dict:
 
 
 def write_road_json(q: RoadQuantities, out: Path) -> Path:
-    """Write road.json (refuses to overwrite an existing file); returns its path."""
+    """Write road.json under a temporary name, named when complete (never over an existing file); returns its
+    path. Quantities left undefined are null in it and named in a warning."""
     out = Path(out)
-    with open(out, "x", encoding="utf-8") as fh:
-        json.dump(road_json(q), fh, indent=1, ensure_ascii=False, allow_nan=False)
-        fh.write("\n")
+    document = road_json(q)
+    text = json.dumps(document, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+    with new_file(out) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    if undefined := document.get("undefined"):
+        warnings.warn(f"{out}: {', '.join(undefined['quantities'])} not finite, written as null", stacklevel=2)
     return out
 
 

@@ -53,6 +53,34 @@ def removed_on_failure(path: Path) -> Iterator[Path]:
         raise
 
 
+#: What a file being written is called until it is complete: hidden, next to its final name, with the writer's pid.
+TEMP_SUFFIX = ".rig-partial"
+
+
+@contextmanager
+def new_file(path: Path) -> Iterator[Path]:
+    """Run the body that writes the file `path` under a temporary name next to it; once the body is done, give
+    the file its name in one step (a hard link: FileExistsError if `path` appeared meanwhile, nothing is written
+    over). A kill leaves at most the hidden temporary file, never a `path` cut short; any failure, an interrupt
+    included, removes the temporary file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}{TEMP_SUFFIX}")
+    try:
+        yield tmp
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise
+        except OSError:              # a file system without hard links: rename, after checking again
+            if path.exists():
+                raise FileExistsError(17, "File exists", str(path)) from None
+            os.rename(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def format_bytes(n: float) -> str:
     for unit in ("bytes", "kB", "MB", "GB"):
         if abs(n) < 1000 or unit == "GB":

@@ -313,8 +313,8 @@ def road_summary(road: Mapping) -> RoadSummary:
                   for key, label, unit in ROAD_QUANTITIES if _number(road.get(key)) is not None]
     if not quantities:
         raise ValueError("not a road.json from `rig export --format road` (no R_L, Qd, Q0 or S1)")
-    classes = {f"surface {k}": str(v) for k, v in (road.get("surface_classes") or {}).items()}
-    classes |= {f"marking {k}": str(v) for k, v in (road.get("marking_classes") or {}).items()}
+    classes = {f"surface {k}": str(v) for k, v in (road.get("surface_classes") or {}).items() if v is not None}
+    classes |= {f"marking {k}": str(v) for k, v in (road.get("marking_classes") or {}).items() if v is not None}
     notes = [(k, str(road[k])) for k in ("method", "uncertainty", "extrapolated") if road.get(k)]
     return RoadSummary(quantities, classes, notes)
 
