@@ -101,13 +101,15 @@ def camera_class(dev: CameraDevice, camera: CameraConfig) -> type[LuminanceCamer
     return cls
 
 
-def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
+def check_devices(config: RigConfig, source: str | Path = "<rig>") -> list[str]:
     """What connecting to a hardware rig needs beyond the rig file's schema, checked before anything is
-    opened or written: real addresses and a usable camera plug-in (the simulated rig picks its own
-    addresses and brings its own camera). RigConfigError (bad input) naming `source` if not; `rig plan`
-    needs neither."""
+    opened or written: real addresses and, for every device, an installed driver whose class imports and
+    takes the entry's options (a camera plug-in's class checked as such); the simulated rig picks its own
+    addresses and brings its own devices. RigConfigError (bad input) naming `source` if not; `rig plan`
+    needs neither. What was checked, one line per device (`rig devices --check` prints them)."""
     if config.simulated:
-        return
+        return []
+    checked = []
     try:
         _check_addresses(config)
         for which in ROLE_OF:
@@ -124,8 +126,23 @@ def check_devices(config: RigConfig, source: str | Path = "<rig>") -> None:
                 raise RigConfigError(f"key 'camera.calibration_file': camera driver {entry.driver!r} delivers "
                                      "calibrated luminance (its own calibration); a calibration file is for a raw "
                                      "camera (docs/camera-calibration.md)")
+            checked.append(_described(which, entry, cls))
     except RigConfigError as exc:
         raise RigConfigError(f"{source}: {exc}") from None
+    return checked
+
+
+def _described(which: str, entry: DeviceEntry, build: Any) -> str:
+    """One device as `check_devices` found it: driver, the class it imports, where it would connect."""
+    cls = getattr(build, "__self__", build)
+    options = entry.driver_options()
+    if entry.driver == entry.BUILTIN:       # rig's own driver: where it connects, and a positioner's drives
+        shown = {key: options[key] for key in ("address", "map", "device_ids") if key in options}
+    else:                                   # a plug-in's own keys, as the rig file gives them
+        shown = options
+    where = [f"{key} {clip(str(value), 80)}" for key, value in shown.items()]
+    return (f"{which:10s} driver {entry.driver} → {cls.__module__}.{cls.__qualname__}"
+            + "".join(f"; {part}" for part in where))
 
 
 def _calibrates_itself(build: Any) -> bool:

@@ -124,12 +124,16 @@ def print_devices(devices: RigDevices) -> None:
 
 def cmd_devices(args: argparse.Namespace) -> int:
     if args.list:
+        if args.check or args.rig_file:
+            return fail("--list takes no rig file")
         print(f"{'driver':16s} {'role':12s} class  (package)")
         for driver in installed_drivers():
             print(driver.describe())
         return EXIT_OK
     if not args.rig_file:
         return fail("give a rig file, or --list")
+    if args.check:
+        return check_rig_file(args.rig_file)
     try:
         rig = load_rig_config(args.rig_file)
         check_devices(rig, args.rig_file)
@@ -141,6 +145,23 @@ def cmd_devices(args: argparse.Namespace) -> int:
     except DeviceError as exc:
         print(f"rig: device error: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    return EXIT_OK
+
+
+def check_rig_file(path: str) -> int:
+    """`rig devices --check`: the rig file, the drive maps and calibration file it names, and each device's
+    driver (installed, its class imported, the entry's options taken), without opening any port or connection."""
+    try:
+        rig = load_rig_config(path)
+        checked = check_devices(rig, path)
+    except ConfigFileError as exc:
+        return fail(str(exc))
+    print(f"{path}: rig {rig.name} ({'simulated' if rig.simulated else 'hardware'}), valid")
+    for line in checked or ["devices: the simulated rig's own, started in-process by each command"]:
+        print(f"  {line}")
+    if rig.camera.calibration_file:
+        print(f"  camera calibration file {rig.camera.calibration_file}: read and usable")
+    print("  nothing was opened or connected")
     return EXIT_OK
 
 
@@ -242,8 +263,12 @@ def build_parser() -> argparse.ArgumentParser:
     p_plan.add_argument("campaign", help="campaign YAML file")
     p_plan.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
     p_plan.set_defaults(func=cmd_plan)
-    p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing")
+    p_dev = sub.add_parser("devices", help="connect, print each device's identity and state; moves nothing "
+                                           "(--check: check the rig file without connecting)")
     p_dev.add_argument("rig_file", metavar="RIG.yaml", nargs="?", help="rig file, e.g. campaigns/rigs/simulated.yaml")
+    p_dev.add_argument("--check", action="store_true",
+                       help="check the rig file, its drive maps and calibration file, and every device's driver "
+                            "(installed, importable, takes the entry's options) without opening any port")
     p_dev.add_argument("--list", action="store_true",
                        help="list every installed driver (entry-point group rig.drivers): name, role, class, package")
     p_dev.set_defaults(func=cmd_devices)
