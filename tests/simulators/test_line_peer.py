@@ -1,4 +1,5 @@
-"""LinePeer over TCP: one client at a time when exclusive, and a reconnecting client always gets through."""
+"""LinePeer over TCP: one client at a time when exclusive, and a reconnecting client always gets through; a
+received line is bounded in length and framed as the instrument's manual says."""
 
 import os
 import select
@@ -6,16 +7,18 @@ import selectors
 import socket
 import struct
 import threading
+import tracemalloc
 from collections.abc import Callable
 
 import pytest
+import serial
 
 from rig.config.rigfile import RigConfig
 from rig.drivers.transport import LineTransport
 from rig.physics.brdf_models import get_model
 from rig.simulators.delta_sm_peer import DeltaSMPeer
 from rig.simulators.faults import PeerFaults
-from rig.simulators.line_peer import LinePeer, _TcpServer, peer_gone
+from rig.simulators.line_peer import LinePeer, LineSplitter, _TcpServer, peer_gone
 from rig.simulators.p9710_peer import P9710Peer
 from rig.simulators.world import SimWorld
 from rig.simulators.zaber_peer import ZaberPeer
@@ -170,3 +173,60 @@ def test_every_line_peer_starts_once_stops_twice_and_refuses_unknown_faults(make
     with pytest.raises(ValueError, match="unknown fault 'smoke'"):
         peer.inject("smoke")
     assert set(os.listdir("/proc/self/fd")) == fds and set(threading.enumerate()) == threads
+
+
+# -- framing and the line-length bound ---------------------------------------------------------------
+class ShortLinePeer(EchoPeer):
+    """Takes lines of up to 16 bytes; a longer one is answered `TOO LONG` (an instrument's error reply)."""
+
+    MAX_LINE = 16
+
+    def overlong(self) -> bytes | None:
+        return b"TOO LONG\n"
+
+
+@pytest.mark.parametrize("terminator, data, lines", [
+    (b"\n", b"a\r\nb\n\nc\rd\ne", [b"a", b"b", b"", b"c\rd"]),          # LF; a CR before it dropped
+    (b"\r", b"a\rb\nc\r\r", [b"a", b"b\nc", b""]),                      # CR only
+    (b"\r\n", b"a\rb\nc\r\n\n\rd\n\re", [b"a", b"b", b"c", b"d"]),      # CR and/or LF, empty lines ignored
+], ids=["LF", "CR", "CR-and-or-LF"])
+def test_the_splitter_frames_lines_as_told(terminator, data, lines):
+    splitter = LineSplitter(terminator, 16)
+    assert [line for i in range(len(data)) for line in splitter.feed(data[i:i + 1])] == lines   # byte by byte
+    assert LineSplitter(terminator, 16).feed(data) == lines                                      # at once
+
+
+def test_the_splitter_reports_an_overlong_line_at_its_end_and_keeps_the_next():
+    splitter = LineSplitter(b"\n", 4)
+    assert splitter.feed(b"abcd") == [] and splitter.feed(b"e") == []
+    assert splitter.feed(b"fgh\nok\n12345\nabcd\n") == [None, b"ok", None, b"abcd"]
+    with pytest.raises(ValueError, match="a line ends in LF, CR, or CR and/or LF, not b';'"):
+        LineSplitter(b";", 4)
+
+
+@pytest.mark.parametrize("medium", ["tcp", "pty"])
+def test_an_endless_line_is_dropped_as_it_arrives_and_answered_as_the_instrument_does(medium):
+    """8 MB without a terminator (before: all of it held, and copied once per 4 kB received, in a peer made
+    to answer it) costs the peer at most a line's worth of memory; the line is answered with the peer's error
+    reply, and the next line as usual."""
+    chunk, chunks = b"x" * (1 << 18), 32
+    with ShortLinePeer(medium) as peer:
+        assert peer.url is not None
+        tracemalloc.start()
+        try:
+            if medium == "tcp":
+                with connect(peer.url) as sock, sock.makefile("rb") as replies:
+                    for _ in range(chunks):
+                        sock.sendall(chunk)
+                    sock.sendall(b"\nnext\n")
+                    assert [replies.readline(), replies.readline()] == [b"TOO LONG\n", b"NEXT\n"]
+            else:
+                with serial.Serial(peer.url, timeout=5.0) as port:
+                    for _ in range(chunks):
+                        port.write(chunk)
+                    port.write(b"\nnext\n")
+                    assert port.read_until(b"\n") == b"TOO LONG\n" and port.read_until(b"\n") == b"NEXT\n"
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+    assert peak < 4 * len(chunk)          # the client's own chunk and its copies; never the 8 MB line
