@@ -141,3 +141,25 @@ def test_the_monitor_follows_a_run_through_a_pause(browser, served, monitor, tmp
 
     urls = requested_urls(browser)
     assert urls and all(u.startswith(url) for u in urls), [u for u in urls if not u.startswith(url)]
+
+
+def test_with_a_token_the_printed_address_gives_a_working_page(browser, tmp_path):
+    """`rig monitor --host` (issue 30, item 7): the page at the printed address, token included, loads its style
+    sheet and script (they were refused without the token: the page said "connecting…" forever) and follows the
+    folder, asking nothing without the token."""
+    token = "t0ken-for-the-browser"
+    server = make_server(tmp_path / "later", "127.0.0.1", 0, token)
+    threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    try:
+        url = page_url(server, token)
+        browser.get("about:blank")
+        requested_urls(browser)
+        browser.get(url)
+        look_until(browser, None, "the wait for the folder", lambda: shown(browser, "phase") == "waiting")
+        rules = browser.execute_script("return Array.from(document.styleSheets, s => s.cssRules.length);")
+        assert len(rules) == 1 and rules[0] > 0
+        urls = requested_urls(browser)
+        assert urls and all(u.startswith(url.split("?")[0]) and f"token={token}" in u for u in urls), urls
+    finally:
+        server.shutdown()
+        server.server_close()
