@@ -60,16 +60,28 @@ def test_umodbus_rtu_builds_the_makers_frames_and_parses_their_replies():
 def rtu_bus() -> Iterator[SimpleNamespace]:
     """AZ drives at ids 1 and 2 with ten steps per degree (the captured move's 1000 steps are 100°), no backlash
     or positioning noise, behind a serial device; `instrument(id)` is minimalmodbus on it at the AZ factory
-    setting (115200 baud, 8E1; a pseudo-terminal takes its settings only as the port opens)."""
+    115200 baud. The parity stays minimalmodbus' none: a pseudo-terminal carries no parity bits; Linux drops
+    PARENB from its settings, and pyserial's next setting, which asks for it again, fails (EINVAL)."""
     world = SimWorld(RigConfig(simulation=SimulationConfig(positioning_sigma_deg=0.0, axis_zero_sigma_deg=0.0)),
                      get_model("lambert"), {"kd": 0.5})
     axes = [(name, AxisConfig(limits_deg=(-180, 180), speed_deg_s=15, accel_deg_s2=30, settle_s=0.2))
             for name in ("arm_azimuth", "arm_polar")]
+    ports: list[serial.Serial] = []
+
+    def instrument(device_id: int, timeout_s: float = 1.0) -> minimalmodbus.Instrument:
+        drive = minimalmodbus.Instrument(line.path, device_id)      # one port per path, shared by the instruments
+        assert drive.serial is not None
+        drive.serial.baudrate, drive.serial.timeout = 115200, timeout_s
+        ports.append(drive.serial)
+        return drive
+
     with OrientalAZPeer(world, axes, framer="rtu", steps_per_degree=10.0, backlash_deg=0.0) as peer, \
-            serial_line(peer.url) as line, \
-            serial.Serial(line.path, baudrate=115200, parity=serial.PARITY_EVEN, timeout=0.2) as port:
-        yield SimpleNamespace(world=world, line=line, instrument=lambda device_id: minimalmodbus.Instrument(
-            port, device_id))
+            serial_line(peer.url) as line:
+        try:
+            yield SimpleNamespace(world=world, line=line, instrument=instrument)
+        finally:
+            for port in ports:
+                port.close()
 
 
 def test_minimalmodbus_reads_status_and_feedback_position_with_the_captured_frames(rtu_bus):
@@ -105,7 +117,7 @@ def test_minimalmodbus_direct_operation_feedback_speed_and_position(rtu_bus):
 
 def test_minimalmodbus_an_absent_unit_times_out_and_the_bus_goes_on(rtu_bus):
     with pytest.raises(minimalmodbus.NoResponseError):
-        rtu_bus.instrument(5).read_long(0x007E)
+        rtu_bus.instrument(5, timeout_s=0.2).read_long(0x007E)
     assert rtu_bus.instrument(1).read_long(0x007E) == READY
 
 
@@ -118,8 +130,8 @@ def test_minimalmodbus_a_broadcast_write_reaches_every_drive_unanswered(rtu_bus)
 
 def test_minimalmodbus_past_the_operation_data_is_an_illegal_address(rtu_bus):
     """Operation data No. 255 ends at 0x57FF: a read running past it is exception 02, as a request."""
-    with pytest.raises(minimalmodbus.IllegalRequestError):
-        rtu_bus.instrument(1).read_registers(0x57FE, 4)
+    with pytest.raises(minimalmodbus.IllegalRequestError):      # read to its timeout: it expects 13 bytes
+        rtu_bus.instrument(1, timeout_s=0.2).read_registers(0x57FE, 4)
     request = h("01 03 57 FE 00 04")
     assert bytes(rtu_bus.line.sent) == request + crc16_modbus(request)
     assert bytes(rtu_bus.line.received) == ILLEGAL_ADDRESS
