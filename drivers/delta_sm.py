@@ -211,7 +211,7 @@ class DeltaSM(LineInstrument, LampSupply):
         status = self.query(scpi.STATUS_A)
         blocked = [text for bit, text in scpi.BLOCKING_BITS.items() if status & bit]
         if blocked:
-            warnings = self._drain(scpi.WARNING)
+            warnings = self._drain(scpi.WARNING, self.query)
             reason = "; ".join(blocked) + (f" (warnings: {'; '.join(warnings)})" if warnings else "")
             bits = status & sum(scpi.BLOCKING_BITS)
             if bits != self._blocked_reported:
@@ -352,12 +352,12 @@ class DeltaSM(LineInstrument, LampSupply):
         """Drain the error queue (at most its size); the entries other than `0,...`."""
         return self._drain(scpi.ERROR, self.ask)
 
-    def _drain(self, query: Query[tuple[int, str]], ask: Callable[[Query[tuple[int, str]]], tuple[int, str]] | None
-               = None) -> list[str]:
-        """Read a queue (errors or warnings) until `0,None`, at most ERROR_QUEUE_SIZE entries."""
+    def _drain(self, query: Query[tuple[int, str]], ask: Callable[[Query[tuple[int, str]]], tuple[int, str]]
+               ) -> list[str]:
+        """Read a queue (errors or warnings) with `ask` until `0,None`, at most ERROR_QUEUE_SIZE entries."""
         entries = []
         for _ in range(scpi.ERROR_QUEUE_SIZE):
-            code, entry = (ask or self.query)(query)
+            code, entry = ask(query)
             if code == 0:
                 break
             entries.append(entry)

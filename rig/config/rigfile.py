@@ -156,7 +156,7 @@ class LampConfig(StrictModel):
     #: never the supply's maximum: an open filament or a loose socket sees at most this. Required with a real
     #: delta-sm supply (load_rig_config, and the driver refuses to connect without it); the simulated rig states
     #: it for its 12 V lamp (SIMULATED_LAMP_VOLTAGE_LIMIT_V).
-    voltage_limit_v: float | None = Field(None, gt=0, le=1000)
+    voltage_limit_v: float | None = Field(None, gt=0, le=1500)      # the largest SM15K is an SM1500
 
     @model_validator(mode="after")
     def _within_limit(self):
