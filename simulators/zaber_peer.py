@@ -142,7 +142,7 @@ class ZaberPeer(LinePeer):
             self.devices.setdefault(device, {})[number] = _Axis(
                 model, round(cfg.speed_deg_s * per_degree * SPEED_DATA),
                 max(round(cfg.accel_deg_s2 * per_degree * ACCEL_DATA), 1), homed)
-        self._commands: dict[str, Callable[[int, list[_Axis], list[str]], list[str]]] = {
+        self._commands: dict[str, Callable[[int, int, list[_Axis], list[str]], list[str]]] = {
             "": self._status, "home": self._home, "stop": self._stop, "estop": self._stop, "move": self._move,
             "get": self._get, "set": self._set, "warnings": self._warnings, "tools": self._tools}
 
@@ -209,7 +209,7 @@ class ZaberPeer(LinePeer):
             elif command is None:
                 raise Rejected("BADCOMMAND")
             else:
-                data = " ".join(command(device if number == 0 else 0, axes, words[1:]))
+                data = " ".join(command(device, number, axes, words[1:]))
         except Rejected as exc:
             status, data = "RJ", exc.reason
         flag = min(present, key=lambda f: "FWN".index(f[0])) if present else "--"
@@ -219,24 +219,24 @@ class ZaberPeer(LinePeer):
         lines += [("#", " ".join(w for w in (*head, text) if w)) for text in info]
         return "".join(f"{kind}{body}:{lrc(body)}\r\n" if checked else f"{kind}{body}\r\n" for kind, body in lines)
 
-    # -- commands: (device if addressed as a whole else 0, its axes, the words after the command) -> data ----
-    def _status(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    # -- commands: (device, axis number (0: the whole device), its axes, the words after the command) -> data --
+    def _status(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         return ["0"]
 
-    def _home(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _home(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         _no_args(args)
         for a in axes:
             a.model.home()
         return ["0"]
 
-    def _stop(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _stop(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         """`stop` and `estop` alike: the model halts at once (it has no deceleration ramp)."""
         _no_args(args)
         for a in axes:
             a.model.stop()
         return ["0"]
 
-    def _move(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _move(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         if not args or args[0] not in ("abs", "rel", "vel"):
             raise Rejected("BADCOMMAND")
         if len(args) != 2:
@@ -264,7 +264,7 @@ class ZaberPeer(LinePeer):
         lo, hi = a.limits()
         a.go(hi if speed_data > 0 else lo, abs(speed_data))
 
-    def _get(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _get(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         if len(args) != 1:
             raise Rejected("BADDATA" if args else "BADCOMMAND")
         name = args[0]
@@ -272,22 +272,17 @@ class ZaberPeer(LinePeer):
             return [str(_AXIS_SETTINGS[name](a)) for a in axes]
         if name == "limit.cycle.dist" and self.answers_cycle_dist:
             return [str(self.cycle_dist) for _ in axes]
-        value = self._device_setting(device, name)
-        if value is None:
-            raise Rejected("BADCOMMAND")
-        if not device:
-            raise Rejected("DEVICEONLY")
-        return [value]
-
-    def _device_setting(self, device: int, name: str) -> str | None:
-        """A device-scope setting's value (`device` 0: it is read through an axis), None if there is none."""
         values = {"deviceid": DEVICE_ID, "system.serial": SERIAL_BASE + device, "version": FIRMWARE,
-                  "version.build": BUILD, "device.hw.modified": 0, "system.axiscount": len(self.devices.get(device, {})),
+                  "version.build": BUILD, "device.hw.modified": 0, "system.axiscount": len(self.devices[device]),
                   "comm.packet.size.max": PACKET_SIZE_MAX, "comm.command.packets.max": 1,
-                  "comm.word.size.max": WORD_SIZE_MAX, "get.settings.max": 1}
-        return None if name not in values else str(values[name])
+                  "comm.word.size.max": WORD_SIZE_MAX, "get.settings.max": 1}       # the device's own settings
+        if name not in values:
+            raise Rejected("BADCOMMAND")
+        if number:
+            raise Rejected("DEVICEONLY")
+        return [str(values[name])]
 
-    def _set(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _set(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         if len(args) != 2:
             raise Rejected("BADDATA" if args else "BADCOMMAND")
         if args[0] not in _WRITABLE:
@@ -299,7 +294,7 @@ class ZaberPeer(LinePeer):
             setattr(a, _WRITABLE[args[0]], value)
         return ["0"]
 
-    def _warnings(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _warnings(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         if args not in ([], ["clear"]):
             raise Rejected("BADCOMMAND")
         flags = [f for a in axes for f in a.flags()]
@@ -308,7 +303,7 @@ class ZaberPeer(LinePeer):
                 a.model.reset_alarm()
         return [f"{len(flags):02d}", *flags]
 
-    def _tools(self, device: int, axes: list[_Axis], args: list[str]) -> list[str]:
+    def _tools(self, device: int, number: int, axes: list[_Axis], args: list[str]) -> list[str]:
         """`tools echo [text]`: the text back (`0` for none)."""
         if not args or args[0] != "echo":
             raise Rejected("BADCOMMAND")
