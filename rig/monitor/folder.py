@@ -341,7 +341,7 @@ class FolderFollower:
     def _to_measure(self) -> int | None:
         counts = _section(self.manifest, "counts")
         planned, skipped = counts.get("planned"), counts.get("skipped")
-        if all(type(c) is int and 0 <= c <= MAX_POINTS for c in (planned, skipped)):
+        if isinstance(planned, int) and isinstance(skipped, int) and 0 <= skipped <= planned <= MAX_POINTS:
             return planned - skipped
         return self.plan.to_measure + self.batch_points if self.plan and self.plan.to_measure is not None else None
 

@@ -120,8 +120,8 @@ class BoundedServer:
         for key, _ in self._selector.select(timeout):
             if key.fileobj is self.socket:
                 self._accept()
-            else:
-                self._read_head(self._waiting[key.fileobj])  # type: ignore[index]
+            elif (waiting := self._waiting.get(key.fileobj)) is not None:  # type: ignore[call-overload]
+                self._read_head(waiting)                        # (not closed by an accept of this same round)
         deadline = time.monotonic() - self.limits.head_timeout_s
         for waiting in [w for w in self._waiting.values() if w.since < deadline]:
             self._drop(waiting)
