@@ -1,8 +1,12 @@
 """The validation metric (rig.analysis.validation) on cases with a closed form."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from repo_paths import CAMPAIGNS
+from rig.analysis.predict import InterpolatingPredictor, measured_domain
 from rig.analysis.prediction import Prediction
 from rig.analysis.validation import (
     DISJOINT_DEG,
@@ -17,7 +21,11 @@ from rig.analysis.validation import (
     summarise,
     validation_set,
 )
+from rig.config.campaign import load_campaign
+from rig.config.rigfile import simulated_rig
+from rig.data.dataset_reader import Dataset
 from rig.physics import geometry as geo
+from rig.planning.plan import build_plan
 
 RM1 = {"kd": 0.620, "n": 24.0, "k1": 0.158, "k2": 0.0415, "k3": 0.00133, "k4": 5.47}
 DOMAIN = Domain(theta_i_min_deg=0.0, theta_i_max_deg=85.0, theta_o_max_deg=85.0, occlusion_deg=2.5)
@@ -113,3 +121,60 @@ def test_the_truth_scores_zero_and_a_scaled_truth_its_scale():
     assert off.albedo_rel == pytest.approx(0.02, rel=1e-9)
     assert off.road_rel["R_L"] == pytest.approx(0.02, rel=1e-9) and off.road_rel["Qd"] == pytest.approx(0.02, rel=1e-9)
     assert not off.road_extrapolated
+
+
+def planned_dataset(drop=lambda ti, to, po: np.zeros(ti.shape, bool)) -> Dataset:
+    """The paper campaign's planned directions with RM1's closed-form values and a 0.3 % u, less the `drop`ped."""
+    campaign, rig = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml"), simulated_rig()
+    pts = build_plan(campaign, rig).points
+    a = np.array([(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg) for p in pts])
+    a = a[~drop(a[:, 0], a[:, 2], a[:, 3] - a[:, 1])]
+    f = TruthPredictor("retrophong", RM1).predict(*a.T).brdf_per_sr
+    columns = {"theta_i_deg": a[:, 0], "phi_i_deg": a[:, 1], "theta_o_deg": a[:, 2], "phi_o_deg": a[:, 3],
+               "brdf_per_sr": f, "u_brdf_per_sr": 0.003 * f}
+    n = len(f)
+    return Dataset(path=Path("mem"), manifest={}, columns=columns, point_id=[f"p{k}" for k in range(n)],
+                   flags=[()] * n, time_utc=[""] * n, skipped=[], header=tuple(columns))
+
+
+def test_a_dataset_with_a_hole_scores_worse_inside_the_reference_than_the_full_one():
+    """The metric can fail: the paper table without its 40° and 50° incidences (30 to 60° left to interpolation)
+    scores worse where the full table measures than the full table itself (p95 0.066 against 0.039)."""
+    truth = TruthPredictor("retrophong", RM1)
+    full = InterpolatingPredictor(measured_domain(planned_dataset()))
+    holed = InterpolatingPredictor(measured_domain(planned_dataset(lambda ti, to, dp: np.isin(np.round(ti), [40, 50]))))
+    v = validation_set(DOMAIN, n_base=1024, seed=3)
+    scored = {name: representation_error(p, truth, v, DOMAIN, road=False, reference=full)
+              for name, p in (("full", full), ("holed", holed))}
+    assert scored["holed"].regions["all"].p95 > 1.5 * scored["full"].regions["all"].p95
+    assert scored["holed"].regions["forward"].median > 3 * scored["full"].regions["forward"].median
+    assert scored["full"].blind is not None and scored["full"].blind.n > 0
+    assert scored["full"].regions["all"].n + scored["full"].blind.n == len(v.angles_deg)
+
+
+class Patchy:
+    """The truth × `inside` where the reference measures and × `outside` where it extrapolates."""
+
+    method = "patchy truth"
+
+    def __init__(self, truth, reference, inside, outside):
+        self.truth, self.reference, self.inside, self.outside = truth, reference, inside, outside
+
+    def predict(self, *angles):
+        p = self.truth.predict(*angles)
+        seen = ~self.reference.predict(*angles).extrapolated
+        return Prediction(p.brdf_per_sr * np.where(seen, self.inside, self.outside), p.u_brdf_per_sr, p.extrapolated)
+
+
+def test_blind_pairs_cannot_hide_a_threefold_difference_where_the_reference_measures():
+    """Pooled over the whole set, two predictors 1 % and 3 % off where the table measures, and equally 50 % off
+    where it never looked, share one p95 (the blind pairs are over 5 % of the set); inside the reference: 3×."""
+    truth = TruthPredictor("retrophong", RM1)
+    full = InterpolatingPredictor(measured_domain(planned_dataset()))
+    v = validation_set(DOMAIN, n_base=1024, seed=4)
+    good, bad = Patchy(truth, full, 1.01, 1.5), Patchy(truth, full, 1.03, 1.5)
+    pooled = [representation_error(p, truth, v, DOMAIN, road=False).regions["all"].p95 for p in (good, bad)]
+    assert pooled[1] == pytest.approx(pooled[0], rel=0.01)                       # the old metric: no difference
+    inside = [representation_error(p, truth, v, DOMAIN, road=False, reference=full) for p in (good, bad)]
+    assert inside[1].regions["all"].p95 == pytest.approx(3 * inside[0].regions["all"].p95, rel=0.05)
+    assert inside[0].blind.p95 == pytest.approx(inside[1].blind.p95, rel=1e-9)
