@@ -11,6 +11,7 @@ are bounded by rig_process.HANG_S as a hang guard, never asserted on.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -158,6 +159,9 @@ def test_with_a_token_the_printed_address_gives_a_working_page(browser, tmp_path
         look_until(browser, None, "the wait for the folder", lambda: shown(browser, "phase") == "waiting")
         rules = browser.execute_script("return Array.from(document.styleSheets, s => s.cssRules.length);")
         assert len(rules) == 1 and rules[0] > 0
+        (tmp_path / "later").mkdir()
+        os.mkfifo(tmp_path / "later" / "events.jsonl")          # what cannot be read is said on the page
+        look_until(browser, None, "the warning", lambda: "events.jsonl: a FIFO" in shown(browser, "warnings"))
         urls = requested_urls(browser)
         assert urls and all(u.startswith(url.split("?")[0]) and f"token={token}" in u for u in urls), urls
     finally:

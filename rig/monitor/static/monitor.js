@@ -67,6 +67,9 @@
     $("state").dataset.phase = s.phase;
     text("phase", s.phase);
     text("detail", s.detail || "");
+    const w = s.warnings || [];        // lines skipped and files not read (docs/monitor.md): said, never hidden
+    text("warnings", w.length ? "Not followed: " + w.slice(-3).join(" · ") +
+         (s.bad_lines > 3 ? " (" + s.bad_lines + " lines skipped in all)" : "") : "");
     const p = s.progress;
     text("done", String(p.done));
     text("to-measure", p.to_measure === null ? "?" : String(p.to_measure));
