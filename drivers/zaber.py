@@ -3,7 +3,7 @@
 Our own driver on our line transport rather than zaber-motion: that library is a
 large binary-backed package (a Go core behind a Python shim) with its own serial
 stack, so it could run neither on `LineTransport` (one retry policy, one event
-sink, in-memory replays) nor on the rig clock; the subset we need is ten commands.
+sink, in-memory replays) nor on the rig clock; the subset we need is a dozen commands.
 
 The protocol (docs/zaber.md): one request line `/d a text[:LRC]`, one reply
 `@dd a OK|RJ BUSY|IDLE FLAG data` + CRLF from the addressed device of a daisy
