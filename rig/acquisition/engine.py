@@ -38,7 +38,7 @@ from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
 from rig.acquisition.summary import run_summary
 from rig.acquisition.suspenders import UNVOUCHED, Suspender, device_silent, install
-from rig.acquisition.tending import tended
+from rig.acquisition.tending import batch_while_tending, tended
 from rig.acquisition.warmup import warm_up
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
@@ -319,7 +319,7 @@ class Runner:
 
     def _more_points(self) -> list[PlannedPoint]:
         """The source's next batch (every row final: the closing reading came first), added to the plan."""
-        batch = list(self.source.next_batch(self.ledger.rows, self._event)) if self.source else []
+        batch = batch_while_tending(self.source, self.ledger.rows, self.dev.clock, self._event) if self.source else []
         self.plan = replace(self.plan, points=self.plan.points + tuple(batch))
         self.eta.add(point_estimates_s(replace(self.plan, points=tuple(batch)), self.mover.position, self.rig.axes,
                                        NOMINAL_CAPTURE_S))

@@ -10,16 +10,26 @@ measurement (issue 30). So the engine talks to the meter and the camera through 
 after each blocking call, the clock runs whatever keep-alive is due (`clock.sleep(0.0)`), on the
 engine's own thread, between two exchanges, as the clock's design wants. A stop of the axes asked
 meanwhile (the clock's sleep check) is honoured there too, like in any other sleep.
+
+A long computation between two exchanges starves it alike on a real rig, where wall time is rig time: the
+adaptive sampler's next batch takes seconds (`computed_while_tending`).
 """
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, TypeVar
 
 from rig.core.clock import Clock
 from rig.core.values import Frame, IlluminanceReading, LuminanceImage, Window
 from rig.drivers.interfaces import CalibratedLuminanceCamera, IlluminanceMeter, LuminanceCamera, RigDevices
+from rig.planning.points import PlannedPoint, PointSource
+
+T = TypeVar("T")
+#: Wall time between two chances the clock gets while a computation runs (a keep-alive is due every W/4 ≥ 5 ms).
+COMPUTE_SLICE_S = 0.005
 
 
 class _Tended:
@@ -84,3 +94,39 @@ def tended(devices: RigDevices) -> RigDevices:
     camera = devices.camera
     wrap = TendedCalibratedCamera if isinstance(camera, CalibratedLuminanceCamera) else TendedCamera
     return replace(devices, meter=TendedMeter(devices.meter, devices.clock), camera=wrap(camera, devices.clock))
+
+
+def computed_while_tending(clock: Clock, work: Callable[[], T]) -> T:
+    """`work()` on a thread of its own while this thread gives the clock its chance every COMPUTE_SLICE_S of wall
+    time: the keep-alives due run here, on the thread that owns the devices (`work` must not talk to them). A
+    simulated clock does not advance meanwhile (computing takes no rig time). `work`'s exception is raised here;
+    an abort raised by the clock's sleep check leaves the computation to end alone (a daemon thread)."""
+    outcome: list[Any] = []
+
+    def run() -> None:
+        try:
+            outcome.append((True, work()))
+        except BaseException as exc:  # handed to the caller, whatever it is
+            outcome.append((False, exc))
+    worker = threading.Thread(target=run, name="rig-computation", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(COMPUTE_SLICE_S)
+        clock.sleep(0.0)
+    done, value = outcome[0]
+    if not done:
+        raise value
+    return value
+
+
+def batch_while_tending(source: PointSource, rows: Sequence[Mapping[str, object]], clock: Clock,
+                        event: Callable[..., None]) -> list[PlannedPoint]:
+    """`source`'s next batch after `rows`, computed while the clock's keep-alives run (`computed_while_tending`);
+    the events it reports are written afterwards through `event`, on this thread: a keep-alive may write one
+    meanwhile, and the dataset has one writer."""
+    said: list[tuple[str, dict[str, Any]]] = []
+    batch = computed_while_tending(clock, lambda: list(source.next_batch(
+        rows, lambda kind, **fields: said.append((kind, fields)))))
+    for kind, fields in said:
+        event(kind, **fields)
+    return batch

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import json
+import threading
 from pathlib import Path
 
 import pytest
@@ -114,6 +115,42 @@ def test_a_point_of_blocking_frames_and_darks_keeps_the_lamp_on(tmp_path):
     assert camera.exposed_s > 2 * rig.lamp.watchdog_s        # the case is real: blocked for several periods
     assert status == "complete" and not lamp_on
     assert not {"watchdog_expired", "suspended"} & {e["event"] for e in events(tmp_path / "ds")}
+
+
+class SlowSampler:
+    """An adaptive campaign's source whose choice takes two seconds of rig time, as computing the next batch takes
+    seconds of wall time on a real rig (there wall time is rig time), and returns only once the clock's keep-alives
+    have had their chance meanwhile: a keep-alive of its own, due once the two seconds have passed, says so."""
+
+    def __init__(self, clock):
+        self.clock, self.fed, self.calls = clock, threading.Event(), 0
+        clock.keep_alive(1.0, self.fed.set)
+
+    def next_batch(self, rows, event):
+        self.calls += 1
+        self.fed.clear()
+        self.clock.advance(2.0)                     # the computation's time: no keep-alive runs inside it
+        if not self.fed.wait(timeout=5.0):           # hang guard: the keep-alive never got its chance
+            raise AssertionError("no keep-alive ran while the next batch was computed")
+        event("sampling_done", reason="test", batches=0, planned_rig_time_s=0.0)
+        return []
+
+
+def test_the_next_adaptive_batch_is_computed_while_the_keep_alives_run(tmp_path):
+    c = parse_campaign({
+        "name": "slow", "sample": {"id": "S", "simulated_brdf": {"model": "lambert", "params": {"kd": 0.5}}},
+        "incidence": [{"phi": 0, "theta": [30]}], "viewing": [{"points": [[20, 180], [40, 90]]}],
+        "lamp": {"warmup_min_s": 60}})
+    rig = simulated_rig()
+    writer = DatasetWriter(tmp_path / "ds", {"campaign": {"name": c.name}})
+    with SimulatedRig(rig, "lambert", {"kd": 0.5}) as sim:
+        source = SlowSampler(sim.world.clock)
+        status = Runner(c, build_plan(c, rig), sim.devices, writer, rig, source=source).run()
+    writer.close()
+    assert status == "complete" and source.calls == 1
+    ev = events(tmp_path / "ds")
+    assert [e["reason"] for e in ev if e["event"] == "sampling_done"] == ["test"]     # its event, written after
+    assert "watchdog_expired" not in {e["event"] for e in ev}
 
 
 # -- what cannot be fed is refused before anything starts ------------------------------------------
