@@ -129,26 +129,34 @@ class DeltaSM(LineInstrument, LampSupply):
             self.events("watchdog_expired_before_connect", device=self.name,
                         what="the supply's watchdog had switched the output off (a previous session ended "
                              "without closing)")
-        self._set(scpi.CLEAR_STATUS)                      # stale entries would be blamed on our first setting
-        self._set(scpi.REMOTE_CV, "REMote")
-        self._set(scpi.REMOTE_CC, "REMote")
         self.max_current_a = self.query(scpi.MAX_CURRENT)
-        max_voltage_v = self.query(scpi.MAX_VOLTAGE)
+        self.max_voltage_v = self.query(scpi.MAX_VOLTAGE)
         for what, value, maximum, unit in (("current limit", self.current_limit_a, self.max_current_a, "A"),
                                            ("lamp current", current_a, self.max_current_a, "A"),
-                                           ("voltage limit", self.voltage_limit_v, max_voltage_v, "V")):
+                                           ("voltage limit", self.voltage_limit_v, self.max_voltage_v, "V")):
             if value > maximum:
                 raise DeviceError(self.name, f"{what} {value:g} {unit} exceeds the supply's maximum {maximum:g} {unit}")
-        self._set_limit(scpi.CURRENT_LIMIT, scpi.CURRENT_LIMIT_VALUE, self.current_limit_a, self.max_current_a)
-        self._set_limit(scpi.VOLTAGE_LIMIT, scpi.VOLTAGE_LIMIT_VALUE, self.voltage_limit_v, max_voltage_v)
-        self._set(scpi.VOLTAGE, plain(self.voltage_limit_v))
-        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms)
+        self._configure()
 
-    def _set_limit(self, setting: Setting, query: Query[float], value: float, maximum: float) -> None:
+    def _configure(self, policy: RetryPolicy | None = None) -> None:
+        """The session's settings, on connect and again when the watchdog is found off while the lamp should be on
+        (the supply may have restarted: setpoints at 0, table 5.1): remote hand-over, both limits (read back),
+        the voltage setpoint at the lamp's limit, the watchdog armed. All are absolute: applying them twice is
+        harmless."""
+        self._set(scpi.CLEAR_STATUS, policy=policy)      # stale entries would be blamed on our first setting
+        self._set(scpi.REMOTE_CV, "REMote", policy=policy)
+        self._set(scpi.REMOTE_CC, "REMote", policy=policy)
+        self._set_limit(scpi.CURRENT_LIMIT, scpi.CURRENT_LIMIT_VALUE, self.current_limit_a, self.max_current_a, policy)
+        self._set_limit(scpi.VOLTAGE_LIMIT, scpi.VOLTAGE_LIMIT_VALUE, self.voltage_limit_v, self.max_voltage_v, policy)
+        self._set(scpi.VOLTAGE, plain(self.voltage_limit_v), policy=policy)
+        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
+
+    def _set_limit(self, setting: Setting, query: Query[float], value: float, maximum: float,
+                   policy: RetryPolicy | None) -> None:
         """Set an enabled limit and read it back: the supply may round it to its programming step (~0.02 ‰ of
         its maximum); more than 1 ‰ off fails the connection."""
-        self._set(setting, plain(value))
-        read_back = self.query(query)
+        self._set(setting, plain(value), policy=policy)
+        read_back = self.retrying(query.text(), lambda: self.ask(query), policy=policy)
         if abs(read_back - value) > 0.5e-4 + 1e-3 * maximum:
             what = setting.template.split()[0].rpartition(":")[2].lower()
             raise DeviceError(self.name, f"{what} limit reads back as {read_back:g} {setting.unit} after setting "
@@ -222,8 +230,8 @@ class DeltaSM(LineInstrument, LampSupply):
             return None
         self._check_watchdog(self.query(scpi.WATCHDOG_STATE), None)      # an expiry no feed has seen yet
         if self._watchdog_off is not None:
-            return OutputLoss(f"the supply's communication watchdog switched the output off ({self._watchdog_off})",
-                              restart=True)
+            return OutputLoss(f"the supply's communication watchdog switched the output off ({self._watchdog_off}; "
+                              f"no command for {self.watchdog_ms / 1000:g} s)", restart=True)
         return OutputLoss("the output was switched off at the supply, not by rig (front panel, web page or "
                           "another client)", restart=False)
 
@@ -275,17 +283,23 @@ class DeltaSM(LineInstrument, LampSupply):
             self.events("watchdog_feed_failed", device=self.name, error=str(exc))
 
     def _check_watchdog(self, remaining_ms: int, policy: RetryPolicy | None) -> None:
-        """The watchdog's state as read (the query restarted it): if it had expired (0) or is off (-1: the
-        supply restarted), say so and re-arm it. An expiry with the lamp on is remembered: the output stays off
-        until rig switches it on again (`output_loss` tells the lamp suspender, whose pause re-warms the lamp)."""
+        """The watchdog's state as read (the query restarted it). Expired (0): re-arm it. Off (-1): its time-out
+        was read elsewhere (a reply lost in a stall) or the supply restarted, so the session's settings are applied
+        again with it. Either way, with the lamp on, the output is off until rig switches it on again:
+        `output_loss` tells the lamp suspender, whose pause re-warms the lamp."""
         if remaining_ms > 0:
             return
-        if remaining_ms == 0 and self._on:
-            self._watchdog_off = f"no command reached it for {self.watchdog_ms / 1000:g} s, noticed at rig time " \
-                                 f"{self.clock.now():.1f} s"
-        self.events("watchdog_expired" if remaining_ms == 0 else "watchdog_off", device=self.name,
-                    what="re-arming; the supply's output was switched off" if remaining_ms == 0 else "re-arming")
-        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
+        expired = remaining_ms == 0
+        if self._on:
+            self._watchdog_off = ("it expired" if expired else "found off: it expired or the supply restarted") + \
+                f", noticed at rig time {self.clock.now():.1f} s"
+        self.events("watchdog_expired" if expired else "watchdog_off", device=self.name,
+                    what="re-arming; the supply's output was switched off" if expired else
+                    "re-applying the session's settings and re-arming (the supply may have restarted)")
+        if expired:
+            self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
+        else:
+            self._configure(policy)
 
     # -- exchanges -----------------------------------------------------------------------------
     def _ramp(self, start: float, target: float, ramp_s: float, policy: RetryPolicy | None = None,

@@ -11,6 +11,7 @@ protocol rig names the cause, and goes on once it is gone, instead of waiting `m
 import json
 from contextlib import contextmanager
 
+import pytest
 from test_runner import at_point, events, run, small_campaign, suspenders_run
 
 from rig.acquisition.execute import execute
@@ -24,14 +25,20 @@ WATCHDOG_S = 5.0
 FREEZE_S = 8.0
 
 
-def test_after_a_freeze_longer_than_the_watchdog_the_lamp_is_switched_on_again_and_the_run_resumes(tmp_path):
+@pytest.mark.parametrize("lost_reply", [False, True])
+def test_after_a_freeze_longer_than_the_watchdog_the_lamp_is_switched_on_again_and_the_run_resumes(tmp_path,
+                                                                                                   lost_reply):
+    """`lost_reply`: the supply's `0` (expired) went to a connection the driver had given up during the stall, so
+    the driver reads `-1` (off), as `rig sim serve` frozen longer than the watchdog showed (`watchdog_off`)."""
     def freeze(peers):           # rig time passes, nothing reaches the supply: its watchdog switches the output off
         supply = peers["lamp"]
         supply.world.clock.advance(FREEZE_S)
         assert supply.check_watchdog() is not None and not supply.world.lamp.output_on
+        if lost_reply:
+            assert supply.answer(b"SYSTem:COMmunicate:WATchdog?") == "0"
     ev, _ = suspenders_run(tmp_path, at_point(6, freeze))           # complete, each point once
     kinds = [e["event"] for e in ev]
-    assert "watchdog_expired" in kinds and "suspend_timeout" not in kinds
+    assert ("watchdog_off" if lost_reply else "watchdog_expired") in kinds and "suspend_timeout" not in kinds
     suspended = next(e for e in ev if e["event"] == "suspended")
     assert suspended["device"] == "lamp" and "watchdog switched the output off" in suspended["reason"]
     assert "burnt out" not in suspended["reason"]

@@ -19,11 +19,11 @@ IDN = "DELTA ELEKTRONIKA BV,SM500-CP-90,000010207248,H0_P0150,0"      # manual Â
 OK = ("SYSTem:ERRor?", "0,None")
 CONNECT = [("*IDN?", IDN),
            ("SYSTem:COMmunicate:WATchdog?", "-1"),                   # off after power-on
-           ("*CLS", None), OK,
-           ("SYSTem:REMote:CV REMote", None), OK,
-           ("SYSTem:REMote:CC REMote", None), OK,
            ("SOURce:CURrent:MAXimum?", "90"),
            ("SOURce:VOLtage:MAXimum?", "500"),
+           ("*CLS", None), OK,                                         # the session's settings (_configure)
+           ("SYSTem:REMote:CV REMote", None), OK,
+           ("SYSTem:REMote:CC REMote", None), OK,
            ("SYSTem:LIMits:CURrent 4.6000,ON", None), OK,
            ("SYSTem:LIMits:CURrent?", "4.6000"),
            ("SYSTem:LIMits:VOLtage 14.0000,ON", None), OK,              # the lamp's limit, not the supply's 500 V
@@ -89,7 +89,7 @@ def test_without_a_voltage_limit_nothing_is_opened_and_the_key_is_named(expected
 
 
 def test_a_voltage_limit_above_the_supply_maximum_fails_before_any_setting(expected_protocol, clock):
-    with expected_protocol(wire(CONNECT[:10])) as replay:
+    with expected_protocol(wire(CONNECT[:4])) as replay:
         with pytest.raises(DeviceError, match=r"lamp: voltage limit 600 V exceeds the supply's maximum 500 V"):
             DeltaSM("socket://lamp:8462", clock=clock, open_port=replay.open_port,
                     **(OPTIONS | dict(voltage_limit_v=600.0)))
@@ -153,6 +153,21 @@ def test_an_expired_watchdog_is_reported_and_re_armed_by_the_feed(scripted, cloc
         clock.sleep(0.25)
         lamp.close()
     assert [kind for kind, _ in events] == ["watchdog_expired"]
+
+
+def test_a_watchdog_found_off_with_the_lamp_on_reapplies_the_settings_and_the_lamp_may_be_switched_on(scripted,
+                                                                                                        clock, events):
+    """-1 where rig armed it: the time-out was read elsewhere (a reply lost in a stall) or the supply restarted
+    (setpoints at 0): the session's settings again, and the output may be switched on again."""
+    on = [("OUTPut ON", None), OK]
+    found_off = [("SYSTem:COMmunicate:WATchdog?", "-1"), *CONNECT[4:]]
+    loss = [("STATus:REGister:A?", "0"), ("OUTPut?", "0"), ("SYSTem:COMmunicate:WATchdog?", "1000")]
+    with scripted(on + found_off + loss) as (lamp, _):
+        lamp.set_output(True)
+        clock.sleep(0.25)
+        assert lamp.output_loss().restart
+        lamp.close()
+    assert [kind for kind, _ in events] == ["watchdog_off"]
 
 
 def test_a_failed_feed_is_reported_once_and_swallowed(scripted, clock, events):
@@ -232,7 +247,7 @@ def test_setpoints_outside_the_limit_are_refused_before_anything_is_sent(scripte
 
 
 def test_a_limit_above_the_supply_maximum_fails_the_connection(expected_protocol, clock):
-    with expected_protocol(wire(CONNECT[:10])) as replay:
+    with expected_protocol(wire(CONNECT[:4])) as replay:
         with pytest.raises(DeviceError, match=r"lamp: current limit 95 A exceeds the supply's maximum 90 A"):
             DeltaSM("socket://lamp:8462", clock=clock, open_port=replay.open_port,
                     **(OPTIONS | dict(current_a=4.17, current_limit_a=95.0)))

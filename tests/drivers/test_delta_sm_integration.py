@@ -377,6 +377,7 @@ def test_an_open_interlock_or_a_remote_shut_down_is_named_and_reported_once(lamp
 
 
 def test_an_output_switched_off_at_the_supply_is_not_switched_on_again_by_rig(lamp, peer):
+    ask(peer, "SYST:COMM:WAT SET,10000")                            # armed, as after connect (the fixture stops it)
     lamp.set_output(True)
     ask(peer, "OUTPut OFF")                                        # the front panel, the web page, another client
     loss = lamp.output_loss()
