@@ -20,13 +20,16 @@ import yaml
 
 from repo_paths import CAMPAIGNS, RIGS
 from rig.acquisition.engine import Runner
+from rig.acquisition.tending import tended
 from rig.cli.main import main
 from rig.config.campaign import CampaignError, check_campaign_for_rig, load_campaign, parse_campaign
 from rig.config.rigfile import load_rig_config, simulated_rig
 from rig.config.watchdog import hdr_picture_s
 from rig.core.values import Frame, Window
 from rig.data.dataset import DatasetWriter
+from rig.drivers.interfaces import CalibratedLuminanceCamera, RigDevices
 from rig.planning.plan import build_plan
+from rig.simulators.clock import SimClock
 from rig.simulators.rig import SimulatedRig
 
 
@@ -115,6 +118,38 @@ def test_a_point_of_blocking_frames_and_darks_keeps_the_lamp_on(tmp_path):
     assert camera.exposed_s > 2 * rig.lamp.watchdog_s        # the case is real: blocked for several periods
     assert status == "complete" and not lamp_on
     assert not {"watchdog_expired", "suspended"} & {e["event"] for e in events(tmp_path / "ds")}
+
+
+class FakeCalibratedCamera(CalibratedLuminanceCamera):
+    """A camera that calibrates its own pictures (as the LMK): every call blocks for `block_s` inside the device."""
+
+    def __init__(self, clock, block_s: float):
+        self.clock, self.block_s = clock, block_s
+        self.sensor = simulated_rig().camera.sensor_info()
+
+    def identity(self):
+        return "fake LMK"
+
+    def capture_luminance(self, exposure_s, window=None):
+        self.clock.advance(self.block_s)
+        return "picture"
+
+    def capture_hdr_luminance(self, max_exposure_s, min_exposure_s, factor, window=None):
+        return self.capture_luminance(max_exposure_s, window)
+
+
+def test_a_calibrated_cameras_pictures_let_the_keep_alives_run_and_it_stays_one():
+    """The LMK's metering series (up to four single pictures) is fed between pictures like a raw camera's frames,
+    and the wrapped camera is still a CalibratedLuminanceCamera, so its points take the calibrated path."""
+    clock = SimClock()
+    fed = []
+    clock.keep_alive(1.0, lambda: fed.append(clock.now()))
+    devices = RigDevices(arm=None, stage=None, lamp=None, meter=None, camera=FakeCalibratedCamera(clock, 0.6),
+                         clock=clock)
+    camera = tended(devices).camera
+    assert isinstance(camera, CalibratedLuminanceCamera) and camera.identity() == "fake LMK"
+    assert [camera.capture_luminance(0.5) for _ in range(4)] == ["picture"] * 4
+    assert fed == pytest.approx([1.2, 2.4])           # after the pictures that ended past a due time
 
 
 class SlowSampler:
