@@ -75,8 +75,14 @@ class BoundedServer:
     whose connections are bounded as the module says; `handle` serves one complete request head."""
 
     def __init__(self, host: str, port: int, handle: Handle, limits: Limits = DEFAULT_LIMITS):
-        family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        self.socket = socket.create_server((host.strip("[]"), port), family=family, backlog=128)
+        self.socket = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        try:
+            self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)     # a restart finds its port free
+            self.socket.bind((host.strip("[]"), port))
+            self.socket.listen(128)
+        except OSError:
+            self.socket.close()
+            raise
         self.socket.setblocking(False)
         self.server_address = self.socket.getsockname()
         self.handle, self.limits = handle, limits
