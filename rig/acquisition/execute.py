@@ -15,10 +15,12 @@ from typing import Any
 from rig import __version__
 from rig.acquisition.engine import Runner
 from rig.acquisition.outcome import RunEnding, Status, ending_of, record_unstarted
+from rig.acquisition.stopping import AbortRequested
 from rig.config.campaign import Campaign, campaign_sha256
 from rig.config.rigfile import RigConfig
 from rig.core.values import ProgressCallback
 from rig.data.dataset import DatasetWriter
+from rig.data.dataset_format import DatasetError
 from rig.drivers.interfaces import RigDevices
 from rig.planning.points import Plan, PointSource
 
@@ -49,6 +51,8 @@ class RunOutcome:
     error: str | None = None
     #: The lamp supply did not confirm the lamp off at the end (the lamp may still be on): why.
     lamp_problem: str | None = None
+    #: Whether the dataset folder exists: a new one is made only once every device has answered.
+    written: bool = True
 
 
 class SignalRequests:
@@ -118,13 +122,19 @@ def stop_on_signals(requests: SignalRequests) -> Iterator[None]:
 def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
             devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None = None, *,
             writer: DatasetWriter | None = None, done_rows: Sequence[dict] = (),
-            handle_signals: bool = False, source: PointSource | None = None) -> RunOutcome:
-    """Measure `plan` into a new dataset folder `out` (DatasetError if it cannot be created),
-    or into `writer`'s reopened folder, leaving out `done_rows` (a resume).
+            handle_signals: bool = False, source: PointSource | None = None,
+            space_needed_bytes: int | None = None) -> RunOutcome:
+    """Measure `plan` into a new dataset folder `out`, or into `writer`'s reopened folder, leaving out
+    `done_rows` (a resume).
+
+    The new folder is made once `devices` has been entered, i.e. every device has answered (the caller
+    decides which rig: rig.session.connect.open_campaign_rig gives the simulated or the real one): a rig
+    that cannot be reached (a closed port, a served rig busy with another client) or a stop while
+    connecting leaves nothing behind (`written` False), so the same command can simply be run again.
+    DatasetError (nothing written) if the folder cannot be made; `space_needed_bytes` is the dataset's
+    estimated size, for the message of a full disk.
 
     `source`: more points once the plan's are measured (an adaptive campaign: rig.session.adaptive_sampler).
-    `devices` is entered only once the dataset folder exists (the caller decides which rig:
-    rig.session.connect.open_campaign_rig gives the simulated or the real one).
 
     Device and other failures do not raise: they end as status `failed` with the
     completed points kept; the runner has already made the rig safe. How the run ended is
@@ -133,37 +143,44 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     requests = SignalRequests()
     with stop_on_signals(requests) if handle_signals else nullcontext():
         return _execute(campaign, campaign_path, rig, plan, out, devices, progress, writer, done_rows, requests,
-                        source)
+                        source, space_needed_bytes)
 
 
 def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
              devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None,
              writer: DatasetWriter | None, done_rows: Sequence[dict], requests: SignalRequests,
-             source: PointSource | None) -> RunOutcome:
+             source: PointSource | None, space_needed_bytes: int | None) -> RunOutcome:
     """`execute` with the signals already routed to `requests`."""
-    if writer is None:
-        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
-        writer.write_skipped(plan.skipped)
     wall0 = time.perf_counter()
     runner = None
     exit_report: dict[str, Any] = {}
     try:
         with devices as opened:
             exit_report = opened.exit_report
+            if writer is None:
+                if requests.stop or requests.abort:      # stopped while connecting: nothing was measured
+                    raise AbortRequested(requests.abort or requests.stop)
+                writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig),
+                                       space_needed_bytes=space_needed_bytes)
+                writer.write_skipped(plan.skipped)
             runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows,
                             source=source)
             requests.attach(runner)
             ending = RunEnding(runner.run())
     except (KeyboardInterrupt, Exception) as exc:   # KeyboardInterrupt: handle_signals=False, Python's Ctrl+C
+        if writer is None and isinstance(exc, DatasetError):
+            raise                       # the new folder could not be made (the rig is closed again)
         ending = ending_of(exc)
-        if runner is None:       # the rig never came up, so no runner recorded how the run ended
+        if writer is not None and runner is None:   # a resumed folder whose rig never came up
             record_unstarted(writer, ending)
     finally:
         try:
-            if "lamp_off_confirmed" in exit_report:     # the lamp's state as the supply confirmed it, in dataset.json
+            if writer is not None and "lamp_off_confirmed" in exit_report:     # the lamp as the supply confirmed it
                 writer.update_manifest(lamp_at_exit={key: exit_report[key] for key in ("lamp_off_confirmed",
                                                                                        "lamp_problem")})
         finally:
-            writer.close()
+            if writer is not None:
+                writer.close()
     return RunOutcome(ending.status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
-                      time.perf_counter() - wall0, out, ending.message, exit_report.get("lamp_problem"))
+                      time.perf_counter() - wall0, out, ending.message, exit_report.get("lamp_problem"),
+                      written=writer is not None)

@@ -11,7 +11,7 @@ from pathlib import Path
 from rig import __version__
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.acquisition.engine import NOMINAL_CAPTURE_S
-from rig.acquisition.execute import RunOutcome, execute, manifest_for
+from rig.acquisition.execute import RunOutcome, execute
 from rig.acquisition.progress import ProgressBar, format_duration
 from rig.acquisition.resume import prepare_resume
 from rig.cli import bench, calibrate, export, fit, import_alta, monitor, plot, predict, report, sim
@@ -20,7 +20,6 @@ from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
 from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
-from rig.data.dataset import DatasetWriter
 from rig.data.dataset_format import DatasetError
 from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
@@ -185,6 +184,11 @@ def _report_outcome(outcome: RunOutcome, n_skipped: int) -> int:
     if outcome.lamp_problem:
         print(f"rig: WARNING: THE LAMP MAY STILL BE ON: the lamp supply did not confirm it switched off "
               f"({outcome.lamp_problem}). Switch it off at the supply.", file=sys.stderr)
+    if not outcome.written:             # the rig never came up, so the dataset folder was never made
+        print(f"rig: campaign {'failed' if outcome.status == 'failed' else 'stopped'} before any point: "
+              f"{outcome.error or 'interrupted while connecting'}; nothing was written ({outcome.out} was not "
+              "created): run the same command again once the rig answers", file=sys.stderr)
+        return EXIT_FAILED if outcome.status == "failed" else EXIT_INTERRUPTED
     if outcome.status == "failed":
         print(f"rig: campaign failed: {outcome.error}; {outcome.measured} completed points kept in {outcome.out}",
               file=sys.stderr)
@@ -234,16 +238,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         problem = space_problem(out, needed)
         if problem:
             return fail(problem)
-        writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig), space_needed_bytes=needed)
-        writer.write_skipped(plan.skipped)
     except DatasetError as exc:
         return fail(str(exc))
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
     print(f"rig {__version__}: {campaign.name} on {where} → {out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
-    outcome = execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig), writer=writer,
-                      progress=None if args.quiet else ProgressBar(), handle_signals=True,
-                      source=sampler_for(campaign, rig, plan))
+    try:
+        outcome = execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig),
+                          progress=None if args.quiet else ProgressBar(), handle_signals=True,
+                          source=sampler_for(campaign, rig, plan), space_needed_bytes=needed)
+    except DatasetError as exc:         # the folder could not be made once the rig was up: nothing written
+        return fail(str(exc))
     return _report_outcome(outcome, len(plan.skipped))
 
 

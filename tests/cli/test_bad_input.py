@@ -215,3 +215,31 @@ def test_a_closed_output_pipe_is_not_a_traceback():
     code = proc.wait(timeout=60)
     err = proc.stderr.read().decode()
     assert code == 141 and err == "", err             # 128 + SIGPIPE, as a shell reports it; no traceback
+
+
+# -- issue 30: a rig that cannot be reached leaves no dataset folder --------------------------------------------
+
+def _closed_port() -> int:
+    """A loopback port nothing listens on."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_rig_that_cannot_be_reached_leaves_no_dataset_folder(tmp_path, capsys):
+    """Before: a `failed` dataset folder with no point, which the rerun of the same command then refused."""
+    port = _closed_port()
+    rig = {"name": "unreachable", "simulated": False, "lamp": {"voltage_limit_v": 14.0},
+           "devices": {name: {"address": f"modbus-tcp://127.0.0.1:{port}"} for name in ("arm", "stage")}
+           | {"lamp": {"address": f"socket://127.0.0.1:{port}"}, "meter": {"address": f"socket://127.0.0.1:{port}"},
+              "camera": {"driver": "rig-sim-camera", "address": f"socket://127.0.0.1:{port}"}}}
+    rig_file = tmp_path / "rig.yaml"
+    rig_file.write_text(yaml.safe_dump(rig))
+    out = tmp_path / "runs" / "ds"
+    assert main(["run", str(ROOT / "campaigns" / "quick.yaml"), "--rig", str(rig_file), "--out", str(out),
+                 "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "rig: campaign failed before any point: camera: " in err and "nothing was written" in err, err
+    assert not (tmp_path / "runs").exists()

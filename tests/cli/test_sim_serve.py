@@ -130,6 +130,19 @@ def test_kill_9_leaves_the_lamp_to_the_watchdog_and_resume_completes(served, tmp
     assert scpi(lamp, "SYSTem:COMmunicate:WATchdog?") == "-1"
 
 
+def test_a_run_refused_as_busy_leaves_no_dataset_folder(served, tmp_path):
+    """Before: the refused `rig run` left a `failed` dataset folder with no point, which its rerun refused."""
+    rig_file, _, _ = served
+    host, port = load_rig_config(rig_file).devices.camera.options["address"].removeprefix("socket://").rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=HANG_S) as holder:     # another client's session
+        holder.sendall(b"HELLO rig-sim-camera/1\n")
+        assert holder.recv(200).startswith(b"OK rig-sim-camera/1")
+        out = tmp_path / "second"
+        refused = start_rig("run", str(CAMPAIGN), "--rig", str(rig_file), "--out", str(out), "--quiet")
+        _, err = refused.communicate(timeout=HANG_S)
+    assert refused.returncode == 1 and "busy" in err and "nothing was written" in err, err
+    assert not out.exists()
+
 
 def test_the_default_sample_is_the_paper_campaigns_rm1():
     truth = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml").sample.simulated_brdf
