@@ -28,7 +28,7 @@ from rig.monitor.front import Limits
 from rig.monitor.server import make_server, page_url
 
 SEED = 20261127
-ROUNDS, LINES_PER_ROUND = 120, 12
+ROUNDS, LINES_PER_ROUND = 80, 12
 HANG_GUARD_S = 10.0
 HOSTILE_VALUES: list[Any] = [float("nan"), float("inf"), -float("inf"), 1e308, -1e308, 10 ** 300, [], {}, ["x"],
                              {"a": {"b": None}}, None, True, "", "x" * 140_000, "\u2028\u0000\udfff"]
