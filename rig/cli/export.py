@@ -12,6 +12,7 @@ from rig.analysis.result_files import read_fit
 from rig.analysis.road import export_road
 from rig.cli.predict import predictor_for
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
 from rig.data.export import FORMATS, ExportError, export
@@ -61,6 +62,7 @@ def _export(args: argparse.Namespace) -> list[Path]:
     return export(args.dataset, args.format, args.out, coverage_k=args.coverage_k)
 
 
+@interruptible
 def cmd_export(args: argparse.Namespace) -> int:
     """Export, say where on stderr (warnings too); bad input and unwritable output are exit code 2."""
     try:

@@ -11,6 +11,7 @@ from typing import Any
 
 from rig.analysis.fit import LOSSES, UNUSABLE_FLAGS, FitResult, choose_weighting, fit_dataset, usable_rows
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
 from rig.physics.brdf_models import MODELS
@@ -60,6 +61,7 @@ def _fixed_value(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
 
 
+@interruptible
 def cmd_fit(args: argparse.Namespace) -> int:
     """Fit, print the report (or the comparison of `--model all`), optionally write the JSON."""
     names = sorted(MODELS) if args.model == "all" else [args.model]

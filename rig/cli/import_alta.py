@@ -6,12 +6,14 @@ import argparse
 import sys
 
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.core.jsonfile import read_json
 from rig.data.alta import CONVERTIBLE_OUT, AltaError
 from rig.data.dataset_format import DatasetError
 from rig.data.importer import MISSING_PARAM_OUT_DEFAULT, import_alta
 
 
+@interruptible
 def cmd_import(args: argparse.Namespace) -> int:
     """Import, report the counts on stderr; bad input and unwritable output are exit code 2."""
     try:

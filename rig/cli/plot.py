@@ -8,9 +8,11 @@ import sys
 from rig.analysis.plots import plot_dataset
 from rig.analysis.result_files import read_fit
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 
 
+@interruptible
 def cmd_plot(args: argparse.Namespace) -> int:
     """Plot, say how many figures on stderr; bad input and unwritable output are exit code 2."""
     try:

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 
 from rig.analysis.predict import InterpolatingPredictor, measured_domain, model_predictor
-from rig.analysis.prediction import Predictor
+from rig.analysis.prediction import Prediction, Predictor
 from rig.analysis.result_files import read_fit
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
-from rig.data.output_folder import removed_on_failure
+from rig.data.output_folder import new_file
 
 ANGLES = ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg")
 COLUMNS = (*ANGLES, "brdf_per_sr", "u_brdf_per_sr", "extrapolated")
@@ -66,6 +67,17 @@ def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | N
     return model_predictor(ds, read_fit(fit_path) if fit_path else None, model, source=str(fit_path))
 
 
+def _write_predictions(out: Path, directions: np.ndarray, p: Prediction) -> None:
+    """PRED.csv, written under a temporary name and named when complete (rig.data.output_folder.new_file)."""
+    with new_file(out) as tmp, tmp.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(COLUMNS)
+        for angles, f, u, x in zip(directions.tolist(), p.brdf_per_sr.tolist(), p.u_brdf_per_sr.tolist(),
+                                   p.extrapolated.tolist()):
+            writer.writerow([*angles, repr(f), repr(u), int(x)])
+
+
+@interruptible
 def cmd_predict(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists():
@@ -79,12 +91,10 @@ def cmd_predict(args: argparse.Namespace) -> int:
         return fail(str(exc))
     except OSError as exc:
         return fail(f"{exc.filename}: {exc.strerror}")
-    with removed_on_failure(out), out.open("w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(COLUMNS)
-        for angles, f, u, x in zip(directions.tolist(), p.brdf_per_sr.tolist(), p.u_brdf_per_sr.tolist(),
-                                   p.extrapolated.tolist()):
-            writer.writerow([*angles, repr(f), repr(u), int(x)])
+    try:
+        _write_predictions(out, directions, p)
+    except OSError as exc:
+        return fail(f"cannot write {out}: {exc.strerror or exc}")
     n_x = int(np.count_nonzero(p.extrapolated))
     print(f"predicted {len(directions)} directions → {out} ({predictor.method}); {n_x} extrapolated beyond the "
           f"measured domain", file=sys.stderr)

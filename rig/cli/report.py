@@ -9,12 +9,14 @@ from pathlib import Path
 
 from rig.analysis.result_files import read_fit, read_road
 from rig.core.exits import EXIT_OK, fail
+from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
-from rig.data.output_folder import removed_on_failure
+from rig.data.output_folder import new_file
 from rig.report import report_html
 
 
+@interruptible
 def cmd_report(args: argparse.Namespace) -> int:
     """Write the report; refuse an existing --out (as rig export does); bad input is exit code 2."""
     out = Path(args.out)
@@ -29,8 +31,11 @@ def cmd_report(args: argparse.Namespace) -> int:
         return fail(str(exc).strip('"'))
     except OSError as exc:
         return fail(f"{exc.filename}: {exc.strerror}")
-    with removed_on_failure(out):
-        out.write_text(html, encoding="utf-8")
+    try:
+        with new_file(out) as tmp:
+            tmp.write_text(html, encoding="utf-8")
+    except OSError as exc:
+        return fail(f"cannot write {out}: {exc.strerror or exc}")
     print(f"report of {args.dataset} → {out} ({len(html.encode()) / 1e6:.1f} MB, self-contained)", file=sys.stderr)
     return EXIT_OK
 

@@ -41,7 +41,7 @@ from rig import __version__
 from rig.data.alta import write_alta
 from rig.data.dataset_format import usable_u
 from rig.data.dataset_reader import Dataset, load
-from rig.data.output_folder import removed_on_failure
+from rig.data.output_folder import new_file
 from rig.physics.geometry import angle_between, sph_to_vec, wrap_pi
 
 FORMATS = ("alta", "csv", "rl")
@@ -173,5 +173,6 @@ def export(dataset: Dataset | str | os.PathLike, fmt: str, out: str | os.PathLik
     _refuse_existing(out)
     if len(ds) == 0:
         raise ExportError(f"{ds.path}: no measured point to export")
-    with removed_on_failure(out):
-        return export_alta(ds, out, coverage_k) if fmt == "alta" else EXPORTERS[fmt](ds, out)
+    with new_file(out) as tmp:           # written under a temporary name, named when complete
+        export_alta(ds, tmp, coverage_k) if fmt == "alta" else EXPORTERS[fmt](ds, tmp)
+    return [out]

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -41,7 +42,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rig import __version__
+from rig.core.interrupts import held_signals
 from rig.data.dataset_reader import Dataset
+from rig.data.output_folder import new_file
 from rig.data.radiance_cal import FUNCTION, model_cal
 from rig.physics.geometry import mean_direction_deg, wrap_360
 
@@ -170,6 +173,8 @@ def export_radiance(ds: Dataset, out: Path, *, isotropic: bool) -> list[Path]:
     incidence); otherwise one file per series, as measured. Emits a `SparseIncidenceWarning` when
     the incidences are too sparse for pabopto2bsdf (module docstring).
     """
+    if len(ds) == 0:
+        raise RadianceError(f"{ds.path}: no measured point to export")
     files = merged_isotropic_files(ds) if isotropic else series_files(ds)
     for problem in sparsity_problems(files, isotropic=isotropic):
         warnings.warn(f"{ds.path}: {problem}", SparseIncidenceWarning, stacklevel=2)
@@ -192,16 +197,37 @@ def _pyradiance() -> ModuleType:
 
 
 def run_tool(name: str, args: list[str], stdout: Path, stdin: str | None = None) -> None:
-    """Run the Radiance program `name` shipped with pyradiance, `stdin` on its input, its output into `stdout`."""
+    """Run the Radiance program `name` shipped with pyradiance, `stdin` on its input, its output into `stdout`.
+
+    The program runs in a session of its own and whatever is left of that session is killed when this returns
+    or is interrupted (`rig.core.interrupts`): bsdf2ttree runs rttree_reduce children that would otherwise go
+    on writing after rig has ended."""
     binpath = Path(_pyradiance().BINPATH)
     env = {**os.environ, "PATH": f"{binpath}{os.pathsep}{os.environ.get('PATH', '')}"}   # bsdf2ttree → rttree_reduce
+    proc = None
     with stdout.open("wb") as fh:
-        done = subprocess.run([str(binpath / name), *args], input=None if stdin is None else stdin.encode(),
-                              stdout=fh, stderr=subprocess.PIPE, env=env, check=False)
-    if done.returncode != 0:
+        try:
+            with held_signals():     # an interrupt during Popen() would lose the handle of a running tool
+                proc = subprocess.Popen([str(binpath / name), *args], stdin=subprocess.DEVNULL if stdin is None
+                                        else subprocess.PIPE, stdout=fh, stderr=subprocess.PIPE, env=env,
+                                        start_new_session=True)
+            _, err = proc.communicate(None if stdin is None else stdin.encode())
+        finally:
+            if proc is not None:
+                _end_session(proc)
+    if proc.returncode != 0:
         stdout.unlink(missing_ok=True)
-        message = done.stderr.decode(errors="replace").strip().splitlines()[-3:]
-        raise RadianceError(f"{name} {' '.join(args)} failed (exit {done.returncode}): {' / '.join(message)}")
+        message = err.decode(errors="replace").strip().splitlines()[-3:]
+        raise RadianceError(f"{name} {' '.join(args)} failed (exit {proc.returncode}): {' / '.join(message)}")
+
+
+def _end_session(proc: subprocess.Popen) -> None:
+    """Kill the tool's process group (itself if it still runs, and its children), then reap it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:       # the tool and all its children have ended
+        pass
+    proc.wait()
 
 
 def _ttree_options(resolution_log2: int, percent_cull: float) -> list[str]:
@@ -223,18 +249,22 @@ def export_radiance_xml(ds: Dataset, out: Path, *, source: Literal["model", "dat
         raise ValueError("source 'model' needs fit = {'model': ..., 'params': {...}} (rig fit --json)")
     if source not in ("model", "data"):
         raise ValueError(f"source must be 'model' or 'data', not {source!r}")
-    with tempfile.TemporaryDirectory(prefix="rig-radiance-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="rig-radiance-") as tmp, new_file(out) as xml:
         work = Path(tmp)
         if fit is not None and source == "model":
             cal = work / "model.cal"
             cal.write_text(model_cal(str(fit["model"]), fit["params"]), encoding="utf-8")
             run_tool("bsdf2ttree", ["-t3", *_ttree_options(resolution_log2, percent_cull), "-f", str(cal), FUNCTION],
-                     out)
+                     xml)
         else:
             mountain = export_radiance(ds, work / "mountain", isotropic=isotropic)
+            if len(mountain) < 2:
+                raise RadianceError(f"{ds.path}: one incidence only; pabopto2bsdf interpolates between incidences "
+                                    "and needs at least two: measure another one, or export a fitted model "
+                                    "(--source model --fit FIT.json)")
             sir = work / "data.sir"
             run_tool("pabopto2bsdf", [str(p) for p in mountain], sir)
-            run_tool("bsdf2ttree", [*_ttree_options(resolution_log2, percent_cull), str(sir)], out)
+            run_tool("bsdf2ttree", [*_ttree_options(resolution_log2, percent_cull), str(sir)], xml)
     return [out]
 
 
