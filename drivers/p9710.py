@@ -143,11 +143,12 @@ class P9710(LineInstrument, IlluminanceMeter):
         self.reading_timeout_s = steps * INTEGRATION_STEP_S + autorange_s + timeout_s
         self._identity = ""
         self._heard = False          # whether any complete reply line has arrived
+        self._opened = False         # whether the port ever opened (a silent meter, not a missing port)
         try:
             self.retrying("connect", self.reconnect, reconnect=False)    # reconnect() opens the port itself
         except DeviceError as exc:
             self.link.close()
-            if not exc.unanswered or self._heard:
+            if not exc.unanswered or self._heard or not self._opened:
                 raise
             # Outside the "Remote RS232" mode the meter takes no commands: the likeliest silence at connect.
             raise DeviceError(self.name, f"{str(exc).removeprefix(f'{self.name}: ')} (is the meter's menu Mode "
@@ -190,6 +191,7 @@ class P9710(LineInstrument, IlluminanceMeter):
         autorange on and set the integration time (a retry's way back, as a power-cycled or hand-operated meter
         may have lost them)."""
         self.link.reconnect()
+        self._opened = True
         self.ask(PLAIN_ACKNOWLEDGEMENT)
         model = self.ask(MODEL)
         if not _IDENTITY.fullmatch(model):

@@ -11,6 +11,7 @@ scripted protocol under a real driver.
 
 from __future__ import annotations
 
+import errno
 import socket
 from typing import Any, Protocol
 
@@ -72,6 +73,9 @@ class LineTransport:
             port = self._open_port(self.url, baudrate=self.baudrate, timeout=self.timeout_s,
                                    write_timeout=self.timeout_s)
         except (serial.SerialException, OSError, ValueError) as exc:
+            if getattr(exc, "errno", None) == errno.ENOENT:      # transient: an adapter may come back
+                raise DeviceError(self.device, f"cannot open {self.url}: the port does not exist (unplugged, "
+                                               "renamed, or its server has stopped?)", transient=True) from None
             raise DeviceError(self.device, f"cannot open {self.url}: {exc}", transient=True) from None
         tcp = getattr(port, "_socket", None)
         if isinstance(tcp, socket.socket):
