@@ -27,8 +27,11 @@ combines, in quadrature: the parameters' covariance through the model's gradient
 differences), scaled up where the points of a series share their errors (`series_correlation_factor`);
 the model's misfit to the data, `discrepancy_rel` (the RMS relative residual left once the measurements'
 own u is taken out); and the budget components every point shares (camera and meter calibration), which
-a fit that treats the points as independent leaves out of its covariance. Only a model can say anything
-beyond the measured domain (road quantities at 88.76°, grazing views); such values are still flagged.
+a fit that treats the points as independent leaves out of its covariance; and, beyond the measured domain,
+a model-form term: the model against the data's own extrapolation (the interpolant's, which holds the nearest
+measured values), |ln f_model − ln f_data|. Only a model can say anything beyond the measured domain (road
+quantities at 88.76°, grazing views), but there nothing measured confirms its shape: two reconstructions that
+agree where they were measured and part beyond it say how much is not known. Such values are flagged.
 """
 
 from __future__ import annotations
@@ -280,10 +283,12 @@ class ModelPredictor:
         u = np.sqrt(np.maximum(var, 0.0) + ((self.discrepancy_rel ** 2 + self.scale_u_rel ** 2) * f ** 2))
         u = np.where(np.isnan(var), np.inf, u)
         if self.domain is None:
-            extrapolated = np.ones(f.shape, bool)
-        else:
-            extrapolated = self.domain.extrapolated(ti.ravel(), disk_coordinates(to, po, pi_).reshape(-1, 2))
-        return Prediction(f, u, extrapolated.reshape(f.shape))
+            return Prediction(f, u, np.ones(f.shape, bool))
+        log_f_data, _, extrapolated = self.domain.evaluate(ti.ravel(), disk_coordinates(to, po, pi_).reshape(-1, 2))
+        extrapolated = extrapolated.reshape(f.shape)
+        with np.errstate(all="ignore"):
+            form = np.where(extrapolated, f * np.abs(np.log(f) - log_f_data.reshape(f.shape)), 0.0)
+        return Prediction(f, np.hypot(u, np.where(np.isfinite(form), form, np.inf)), extrapolated)
 
 
 def series_correlation_factor(ds: Dataset, fitted: FittedModel,
