@@ -14,6 +14,7 @@ from rig.core.exits import EXIT_OK, fail
 from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import load
+from rig.data.output_folder import new_file
 from rig.physics.brdf_models import MODELS
 
 
@@ -67,6 +68,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     names = sorted(MODELS) if args.model == "all" else [args.model]
     if args.model != "all" and args.model not in MODELS:
         return fail(f"unknown model {args.model!r}; known: {', '.join(sorted(MODELS))}, or all")
+    if args.json and Path(args.json).exists():
+        return fail(f"{args.json} already exists; choose another --json (nothing was overwritten)")
     try:
         dataset = load(args.dataset)
     except (DatasetError, OSError) as exc:
@@ -77,6 +80,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if unknown:
         return fail(f"--fix {', '.join(unknown)}: no such parameter in {', '.join(names)}")
     keep = usable_rows(dataset, exclude)
+    if len(dataset) == 0:
+        return fail(f"{args.dataset}: no measured point to fit (brdf.csv holds no row)")
+    if not keep.any():
+        return fail(f"{args.dataset}: each of its {len(dataset)} points has one of the flags {', '.join(exclude)}: "
+                    "no point left to fit")
     try:
         weighting, notice = choose_weighting(dataset["u_brdf_per_sr"][keep],
                                              [pid for pid, k in zip(dataset.point_id, keep) if k], args.weighting)
@@ -98,7 +106,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         out = ({"dataset": str(dataset.path), "fits": [r.to_json() for r in results]} if args.model == "all"
                else results[0].to_json())
         try:
-            Path(args.json).write_text(json.dumps(out, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+            with new_file(Path(args.json)) as tmp:       # named when complete; never over an existing file
+                tmp.write_text(json.dumps(out, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         except OSError as exc:
             return fail(f"cannot write {args.json}: {exc.strerror or exc}")
     return EXIT_OK
@@ -110,7 +119,7 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
                                           "RMSE/NRMSE/NCC (Spieringhs 2023 Eqs. 16, 19, 20)")
     p.add_argument("dataset", help="dataset folder (contains dataset.json and brdf.csv)")
     p.add_argument("--model", required=True, help=f"one of {', '.join(sorted(MODELS))}, or all")
-    p.add_argument("--json", metavar="OUT", help="also write the result as JSON")
+    p.add_argument("--json", metavar="OUT", help="also write the result as JSON (a new file: never overwritten)")
     weighting = p.add_mutually_exclusive_group()
     weighting.add_argument("--weighted", dest="weighting", action="store_const", const="uncertainty",
                            help="minimise χ² with u_brdf_per_sr; refused unless every row has u (default: "

@@ -32,6 +32,12 @@ from rig.session.adaptive_sampler import planned_time_s, sampler_for
 from rig.session.connect import open_campaign_rig, open_rig
 
 
+def plan_angle(deg: float) -> str:
+    """A planned angle as the campaign gives it (84.99 stays 84.99, 30 reads 30.0): one decimal printed 84.99° as
+    85.0°, an angle the rig would not be asked for."""
+    return repr(round(deg, 6) + 0.0)
+
+
 def print_adaptive_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     """An adaptive campaign's plan: the candidate domain, the first pass and when the batches stop."""
     spec, candidates = campaign.sampling, candidate_plan(campaign, rig)
@@ -41,7 +47,7 @@ def print_adaptive_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     print(f"  first pass: {len(plan.points)} points, planned rig time {format_duration(planned_time_s(plan, rig))} "
           f"after warm-up ({len(spec.mandatory)} mandatory pairs)")
     for (theta_i, phi_i), n in sorted(first.items()):
-        print(f"    ({theta_i:5.1f}°, {phi_i:5.1f}°)  {n:4d}")
+        print(f"    ({plan_angle(theta_i):>5s}°, {plan_angle(phi_i):>5s}°)  {n:4d}")
     stops = ([f"the planned rig time after warm-up reaches {format_duration(spec.budget_rig_time_s)}"]
              if spec.budget_rig_time_s is not None else []) + (
         [f"u/(f+τ) ≤ {spec.target_u_rel:g} at every candidate"] if spec.target_u_rel is not None else [])
@@ -65,8 +71,8 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     measured = Counter(p.series for p in plan.points)
     planned = measured + Counter(p.series for p in plan.skipped)
     for s in plan.series:
-        print(f"    {s.index:3d}  ({s.theta_i_deg:5.1f}°, {s.phi_i_deg:5.1f}°)  {measured[s.index]:4d} / "
-              f"{planned[s.index]}")
+        print(f"    {s.index:3d}  ({plan_angle(s.theta_i_deg):>5s}°, {plan_angle(s.phi_i_deg):>5s}°)  "
+              f"{measured[s.index]:4d} / {planned[s.index]}")
     moves = estimate_rig_time_s(plan, rig.axes, NOMINAL_CAPTURE_S)
     warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
     print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
