@@ -41,9 +41,41 @@ def _one_line(text: str, first_line: int) -> int | None:
     return first_line if "\n" not in text.strip() else None
 
 
+#: A `\\uD800`–`\\uDFFF` escape: valid JSON, but alone (not a pair) it is no Unicode character, and writing the
+#: string out (a report, a figure's title) fails far from the file.
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F][0-9a-fA-F]{2}")
+
+
+def _has_lone_surrogate(value: Any) -> bool:
+    if isinstance(value, str):
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:
+            return True
+        return False
+    if isinstance(value, dict):
+        return any(_has_lone_surrogate(k) or _has_lone_surrogate(v) for k, v in value.items())
+    if isinstance(value, list):
+        return any(_has_lone_surrogate(v) for v in value)
+    return False
+
+
 def parse_json(text: str, source: str | os.PathLike, *, first_line: int = 1) -> Any:
     """The value of the JSON `text` read from `source` (its first line numbered `first_line`); JsonFileError
-    for anything that is not JSON Python can hold."""
+    for anything that is not JSON Python can hold, or holds a string that is not Unicode text."""
+    value = _parse(text, source, first_line)
+    escape = _SURROGATE_ESCAPE.search(text)
+    try:
+        lone = escape is not None and _has_lone_surrogate(value)
+    except RecursionError:
+        raise JsonFileError(source, "JSON nested too deeply", _one_line(text, first_line)) from None
+    if escape and lone:
+        raise JsonFileError(source, f"a string with a lone UTF-16 surrogate ({escape.group()}…), not Unicode text",
+                            _line_of(text, escape.start(), first_line))
+    return value
+
+
+def _parse(text: str, source: str | os.PathLike, first_line: int) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:

@@ -58,6 +58,7 @@ MANIFESTS = {
     "truncated": (lambda ds: (ds / "dataset.json").write_text((ds / "dataset.json").read_text()[:40]),
                   "not valid JSON"),
     "sample is a list": (lambda ds: _manifest_set(ds, "sample", [1]), "'sample' is a JSON array"),
+    "lone surrogate": (lambda ds: _manifest_set(ds, "sample", {"id": "\ud800x"}), "lone UTF-16 surrogate"),
 }
 
 COMMANDS = {
