@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import random
 import signal
@@ -133,12 +134,13 @@ def paced(monkeypatch):
     monkeypatch.setenv("RIG_SIM_PACE", str(PACE))
 
 
-def assert_stopped_cleanly(end: Ended) -> None:
-    """`interrupted` soon after the request, parked, lamp off, axes still, completed points kept."""
+def assert_stopped_cleanly(end: Ended, latency_s: float = STOP_LATENCY_S) -> None:
+    """`interrupted` within `latency_s` of rig time after the request, parked, lamp off, axes still, completed
+    points kept."""
     assert end.status == "interrupted", end.error
     assert end.requested_rig_s is not None
     honoured = end.first("stop_requested")["rig_time_s"]
-    assert 0 <= honoured - end.requested_rig_s <= STOP_LATENCY_S
+    assert 0 <= honoured - end.requested_rig_s <= latency_s
     kinds = end.kinds()
     assert kinds.index("stop_requested") < kinds.index("parked")
     assert end.first("interrupted")["graceful"] is True
@@ -196,8 +198,8 @@ def test_stop_while_waiting_for_the_illuminance_to_settle(tmp_path, paced):
 
 def test_stop_mid_series_finishes_the_point_in_flight_then_brackets_and_parks(tmp_path, paced):
     end = run(tmp_path, campaign(), stop_when=lambda p: p.done >= 4)
-    assert_stopped_cleanly(end)
-    events = end.events()
+    assert_stopped_cleanly(end, latency_s=math.inf)     # a point in flight is finished: up to 3 rig s here, bounded
+    events = end.events()                                # below as at most one point measured after the request
     pending = [e["row"] for e in events if e["event"] == "point_pending"]
     assert len(pending) >= 4
     assert sum(row["rig_time_s"] > end.requested_rig_s for row in pending) <= 1   # at most the one in flight
