@@ -2,10 +2,11 @@
 
 Draws samples from five families with parameters drawn per seed over the ranges of the published fits
 (docs/predict.md; ../shared seeds: Spieringhs et al. 2023 Table 7 RetroPhong, the MRM tape fit, glossy paints,
-Oren–Nayar and Lambertian diffusers), measures each with the paper campaign's table (campaigns/spieringhs2023-rm1.yaml)
-on the simulated rig, and compares the interpolant at random directions (θi ≤ 88°, θo ≤ 85°) with the closed-form
-truth: k = 2 coverage overall, inside the measured domain and among extrapolated directions, per draw and per
-family, with the median |f̂/f − 1| and median relative u. A calibrated u covers about 95 % everywhere.
+Oren–Nayar and Lambertian diffusers), measures each with the paper campaign's table
+(campaigns/spieringhs2023-rm1.yaml) on the simulated rig, and compares the interpolant at random directions (θi ≤
+88°, θo ≤ 85°) with the closed-form truth (the interpolant `rig predict` uses, rig.analysis.held_out): k = 2
+coverage overall, inside the measured domain and among extrapolated directions, per draw and per family, with the
+median |f̂/f − 1| and median relative u. A calibrated u covers about 95 % everywhere.
 
     python benchmarks/predict_coverage.py [--draws 20] [--directions 3000] [--seed 1]
 """
@@ -24,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.execute import execute  # noqa: E402
-from rig.analysis.predict import InterpolatingPredictor, measured_domain  # noqa: E402
+from rig.analysis.held_out import interpolating_predictor  # noqa: E402
 from rig.config.campaign import SimulatedBrdf, load_campaign  # noqa: E402
 from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
@@ -89,7 +90,7 @@ def main() -> None:
             ti, pi_, to, po = directions(args.directions, args.seed * 1000 + k)
             truth = get_model(family)(sph_to_vec(np.radians(ti), np.radians(pi_)),
                                       sph_to_vec(np.radians(to), np.radians(po)), params)
-            p = InterpolatingPredictor(measured_domain(load(out))).predict(ti, pi_, to, po)
+            p = interpolating_predictor(load(out)).predict(ti, pi_, to, po)
             covered = np.abs(p.brdf_per_sr - truth) <= 2 * p.u_brdf_per_sr
             rel, u_rel = np.abs(p.brdf_per_sr / truth - 1), p.u_brdf_per_sr / p.brdf_per_sr
             ext = p.extrapolated

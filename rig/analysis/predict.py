@@ -85,11 +85,15 @@ def lobe_aligned(xy: np.ndarray, theta_from_deg: np.ndarray, theta_to_deg: float
 class MeasuredDomain:
     """The measured incidences and, per incidence, the hull of its views in the projected disk."""
 
-    def __init__(self, incidences: list[IncidenceViews]):
+    def __init__(self, incidences: list[IncidenceViews], aligned: bool = True, theta_u_scale: float = 1.0):
+        """`aligned`: between incidences, views are compared relative to the lobes (`lobe_aligned`), else at fixed
+        (θo, Δφ); `theta_u_scale`: the between-incidence terms of u are multiplied by it (a calibration on held-out
+        incidences, rig.analysis.held_out)."""
         if not incidences:
             raise ValueError("no incidence has three or more usable, non-collinear views: nothing to interpolate")
         self.incidences = sorted(incidences, key=lambda inc: inc.theta_i_deg)
         self.theta_i_deg = np.array([inc.theta_i_deg for inc in self.incidences])
+        self.aligned, self.theta_u_scale = aligned, theta_u_scale
 
     def brackets(self, theta_i_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Per direction: the indices of the incidences below and above, the weight of the upper one, and
@@ -110,19 +114,21 @@ class MeasuredDomain:
         f_hi, u_hi, in_hi = self.at_incidence(hi, theta_i_deg, xy)
         inside = within & (in_lo | (w == 1)) & (in_hi | (w == 0))
         log_f = (1 - w) * f_lo + w * f_hi
-        u_theta = np.minimum(w, 1 - w) * np.abs(f_hi - f_lo)
+        u_theta = self.theta_u_scale * np.hypot(np.minimum(w, 1 - w) * np.abs(f_hi - f_lo),
+                                                 self.theta_bend(theta_i_deg, xy, lo, hi, w, f_lo, f_hi))
         u_rel = np.hypot((1 - w) * u_lo + w * u_hi, u_theta)
-        return log_f, np.hypot(u_rel, np.hypot(self.theta_bend(theta_i_deg, xy, lo, hi, w, f_lo, f_hi),
-                                               self._beyond(theta_i_deg, xy, f_lo))), ~inside
+        return log_f, np.hypot(u_rel, self._beyond(theta_i_deg, xy, f_lo)), ~inside
 
     def at_incidence(self, k: np.ndarray, theta_i_deg: np.ndarray, xy: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """ln f, u_rel and inside-ness of measured incidence k[m] at the view xy[m] of incidence θi[m], lobe-aligned."""
+        """ln f, u_rel and inside-ness of measured incidence k[m] at the view xy[m] of incidence θi[m] (lobe-aligned
+        unless the domain is not `aligned`)."""
         out = np.zeros(len(k)), np.zeros(len(k)), np.zeros(len(k), bool)
         for j in np.unique(k):
             rows = k == j
             inc = self.incidences[int(j)]
-            for array, part in zip(out, inc.evaluate(lobe_aligned(xy[rows], theta_i_deg[rows], inc.theta_i_deg))):
+            at = lobe_aligned(xy[rows], theta_i_deg[rows], inc.theta_i_deg) if self.aligned else xy[rows]
+            for array, part in zip(out, inc.evaluate(at)):
                 array[rows] = part
         return out
 
@@ -204,10 +210,10 @@ def measured_domain(ds: Dataset, exclude_flags: tuple[str, ...] = UNUSABLE_FLAGS
 class InterpolatingPredictor:
     """The measurements, interpolated (module docstring)."""
 
-    method = "interpolate: piecewise-linear in ln f over each incidence's views, linear in θi between them"
-
-    def __init__(self, domain: MeasuredDomain):
+    def __init__(self, domain: MeasuredDomain, method: str = ""):
         self.domain = domain
+        self.method = method or ("interpolate: piecewise-linear in ln f over each incidence's views, linear in θi "
+                                 "between them" + (" at lobe-aligned views" if domain.aligned else ""))
 
     def predict(self, theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike,
                 phi_o_deg: ArrayLike) -> Prediction:

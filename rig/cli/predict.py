@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.analysis.predict import InterpolatingPredictor, measured_domain, model_predictor
+from rig.analysis.held_out import interpolating_predictor
+from rig.analysis.predict import model_predictor
 from rig.analysis.prediction import Prediction, Predictor
 from rig.analysis.result_files import read_fit
 from rig.core.exits import EXIT_OK, fail
@@ -63,7 +64,7 @@ def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | N
     if method == "interpolate":
         if fit_path or model:
             raise ValueError("--fit and --model go with --method model")
-        return InterpolatingPredictor(measured_domain(ds))
+        return interpolating_predictor(ds)
     return model_predictor(ds, read_fit(fit_path) if fit_path else None, model, source=str(fit_path))
 
 
