@@ -2,8 +2,12 @@
 
 Same plan, same point ids, no duplicate rows. The campaign file must be the one
 the dataset was started with (sha256 in the manifest) unless forced; the rig
-configuration is the manifest's. Points written ahead as `point_pending` (their
-closing E⊥ reading never came) are appended first, with the E⊥ they had.
+configuration is the manifest's, or a new rig file's (`--rig`) once it is found to
+describe the same instruments: only how each device is reached (its address, its
+link's timeout) may differ, since a served rig restarts on new ports and a USB serial
+adapter can come back under another name (rig.acquisition.rig_change). Points written
+ahead as `point_pending` (their closing E⊥ reading never came) are appended first,
+with the E⊥ they had.
 
 The folder is locked first (one writer, rig/data/folderlock.py); everything it holds is
 checked before anything is appended, and a malformed file is refused (exit 2) with
@@ -23,8 +27,9 @@ from pathlib import Path
 from typing import Any
 
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
+from rig.acquisition.rig_change import LINK_KEYS, instrument_difference, link_changes
 from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
-from rig.config.rigfile import RigConfig
+from rig.config.rigfile import RigConfig, load_rig_config
 from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.dataset_format import BRDF_COLUMNS
@@ -181,7 +186,22 @@ def _manifest_part(folder: Path, manifest: dict, key: str, kind: type) -> Any:
     return value
 
 
-def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
+def _same_instruments(folder: Path, recorded: RigConfig, rig_file: str | Path) -> tuple[RigConfig, dict]:
+    """The rig file `--rig` names, if it describes the instruments the dataset was measured with, and what
+    differs in how they are reached; ResumeError naming the first other difference."""
+    rig = load_rig_config(rig_file)
+    difference = instrument_difference(recorded, rig)
+    if difference is not None:
+        raise ResumeError(f"{rig_file}: {difference}: not the instruments {folder} was measured with; a resume "
+                          f"with a new rig file may change only how the devices are reached "
+                          f"({', '.join(LINK_KEYS)}), nothing was changed")
+    return rig, link_changes(recorded, rig)
+
+
+def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | Path | None = None) -> Resumption:
+    """Lock and check `folder`, recover its written-ahead points and log the resume; `rig_file` (`--rig`)
+    replaces the manifest's rig configuration if it describes the same instruments (ResumeError naming the
+    key that differs otherwise)."""
     folder = Path(folder)
     writer = DatasetWriter.reopen(folder)
     try:
@@ -203,8 +223,11 @@ def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
         except ValueError as exc:
             raise ResumeError(f"{folder / 'dataset.json'}: rig.config is not a valid rig configuration "
                               f"({str(exc).splitlines()[0]})") from None
+        changes: dict[str, list[Any]] = {}
+        if rig_file is not None:
+            rig, changes = _same_instruments(folder, rig, rig_file)
         check_campaign_for_rig(campaign, rig, path)
-        check_devices(rig, folder / "dataset.json")
+        check_devices(rig, rig_file if rig_file is not None else folder / "dataset.json")
         plan = build_plan(campaign, rig)
         logged: list[dict] = []
         if campaign.sampling.mode == "adaptive":
@@ -231,11 +254,14 @@ def prepare_resume(folder: str | Path, *, force: bool = False) -> Resumption:
             writer.event("pending_recovered", points=len(recovered),
                          point_ids=[r["point_id"] for r in recovered])
         done = _rows(folder)
+        new_rig = {} if rig_file is None else {"rig_file": str(Path(rig_file).resolve()), "rig_changes": changes}
         writer.event("resume", previous_status=status, measured_before=len(done), campaign_changed=changed,
-                     torn_bytes_cut=writer.cut_bytes)
+                     torn_bytes_cut=writer.cut_bytes, **new_rig)
         resumes = resumes + [{"time_utc": utc_now(), "previous_status": status,
-                              "measured_before": len(done), "forced": force and changed}]
-        writer.update_manifest(status="running", resumes=resumes)
+                              "measured_before": len(done), "forced": force and changed, **new_rig}]
+        rig_entry = {} if rig_file is None else {           # a further resume reaches the devices where they are now
+            "rig": {**manifest["rig"], "config": rig.model_dump(mode="json")}}
+        writer.update_manifest(status="running", resumes=resumes, **rig_entry)
         return Resumption(writer, campaign, path, rig, plan, done, logged)
     except BaseException:
         writer.close()

@@ -171,8 +171,13 @@ def check_rig_file(path: str) -> int:
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
+    """`rig run --resume DIR [--rig NEW.yaml]`: the campaign and the folder are the dataset's own, so a campaign
+    file or `--out` given with it is refused rather than ignored."""
+    if args.campaign or args.out:
+        return fail(f"--resume {args.resume} continues the campaign the dataset was started with, in its own "
+                    f"folder: give no {'campaign file' if args.campaign else '--out'} with it")
     try:
-        r = prepare_resume(args.resume, force=args.force)
+        r = prepare_resume(args.resume, force=args.force, rig_file=args.rig)
     except (ConfigFileError, DatasetError) as exc:
         return fail(str(exc))
     left = len(r.plan.points) - len(r.done_rows)
@@ -267,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--out", help="dataset folder (default: output.dir of the campaign)")
     p_run.add_argument("--resume", metavar="DIR", help="continue an interrupted or failed campaign in DIR")
     p_run.add_argument("--force", action="store_true", help="with --resume: even if the campaign file changed")
-    p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig)")
+    p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig); with --resume: the same "
+                                      "instruments reached at new addresses (default: the rig the dataset recorded)")
     p_run.add_argument("--quiet", action="store_true", help="no progress bar")
     p_run.set_defaults(func=cmd_run)
     p_plan = sub.add_parser("plan", help="print the plan: points, skipped points by reason, rig time")

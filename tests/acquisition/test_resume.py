@@ -15,10 +15,14 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 from repo_paths import E2E_CAMPAIGN as CAMPAIGN
+from repo_paths import ROOT
+from rig.acquisition.rig_change import instrument_difference, link_changes
+from rig.cli.main import main
 from rig.config.campaign import load_campaign
-from rig.config.rigfile import RigConfig
+from rig.config.rigfile import RigConfig, simulated_rig
 from rig.planning.plan import build_plan
 from rig_process import pending_points, start_rig, wait_until
 
@@ -132,3 +136,90 @@ def test_resume_of_a_folder_without_dataset(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "rig.cli.main", "run", "--resume", str(tmp_path)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "no readable dataset.json" in proc.stderr
+
+
+# -- `--resume DIR --rig NEW.yaml` (issue 30 item 4): the same instruments, reached where they are now -----------
+
+def _unfinished(tmp_path: Path, rig: RigConfig) -> Path:
+    """An interrupted dataset of CAMPAIGN on `rig`, before its first point (what `rig run` writes first)."""
+    from rig.acquisition.execute import manifest_for
+    from rig.data.dataset import DatasetWriter
+
+    campaign = load_campaign(CAMPAIGN)
+    out = tmp_path / "ds"
+    writer = DatasetWriter(out, manifest_for(campaign, CAMPAIGN.resolve(), rig))
+    writer.write_skipped(build_plan(campaign, rig).skipped)
+    writer.update_manifest(status="interrupted")
+    writer.close()
+    return out
+
+
+def _rig_file(path: Path, rig: RigConfig, change) -> Path:
+    data = rig.model_dump(mode="json")
+    change(data)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {name: (folder / name).read_bytes() for name in ("dataset.json", "brdf.csv", "events.jsonl")}
+
+
+@pytest.mark.parametrize("change, key", [
+    (lambda d: d["devices"]["arm"].update(device_ids=[3, 4]), "key 'devices.arm.device_ids' is [3, 4], "
+                                                              "the dataset's rig had [1, 2]"),
+    (lambda d: d["devices"]["stage"].update(steps_per_degree=500.0), "key 'devices.stage.steps_per_degree'"),
+    (lambda d: d["camera"].update(responsivity_e_per_cd_m2_s=1000.0), "key 'camera.responsivity_e_per_cd_m2_s'"),
+    (lambda d: d["meter"].update(calibration_lx_per_a=2e9), "key 'meter.calibration_lx_per_a'"),
+    (lambda d: d.update(attenuator=None) or d["devices"].update(attenuator=None), "key 'devices.attenuator"),
+])
+def test_a_new_rig_file_of_other_instruments_is_refused(tmp_path, capsys, change, key):
+    """Before: `--rig` was ignored and the resume ran on the rig the dataset recorded."""
+    recorded = simulated_rig()
+    out = _unfinished(tmp_path, recorded)
+    before = _files(out)
+    new = _rig_file(tmp_path / "new.yaml", recorded, change)
+    assert main(["run", "--resume", str(out), "--rig", str(new), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rig: error: {new}: {key}") and "not the instruments" in err and "nothing was changed" in err
+    assert _files(out) == before
+
+
+def test_only_how_the_devices_are_reached_may_differ(tmp_path):
+    recorded = RigConfig.model_validate(yaml.safe_load((ROOT / "campaigns" / "rigs" / "example-lab.yaml").read_text()))
+    data = recorded.model_dump(mode="json")
+    data["devices"]["meter"].update(address="/dev/ttyUSB7", timeout_s=5.0)
+    data["devices"]["arm"]["address"] = "modbus-tcp://10.0.0.5:502"
+    moved = RigConfig.model_validate(data)
+    assert instrument_difference(recorded, moved) is None
+    assert link_changes(recorded, moved) == {"devices.arm.address": ["modbus-tcp://192.168.10.21:502",
+                                                                     "modbus-tcp://10.0.0.5:502"],
+                                             "devices.meter.address": ["/dev/ttyUSB1", "/dev/ttyUSB7"],
+                                             "devices.meter.timeout_s": [3.0, 5.0]}
+    data["devices"]["camera"]["lens"] = "another-lens"          # a plug-in's option that is not an address
+    assert "key 'devices.camera.options.lens' is 'another-lens'" in instrument_difference(
+        recorded, RigConfig.model_validate(data))
+
+
+def test_files_named_by_the_rig_file_are_compared_by_content(tmp_path):
+    first, second = tmp_path / "a" / "cal.yaml", tmp_path / "b" / "cal.yaml"
+    for path in (first, second):
+        path.parent.mkdir()
+        path.write_text("the same calibration\n")
+    recorded = RigConfig.model_validate({"camera": {"calibration_file": str(first)}})
+    copied = RigConfig.model_validate({"camera": {"calibration_file": str(second)}})
+    assert instrument_difference(recorded, copied) is None
+    second.write_text("another calibration\n")
+    assert instrument_difference(recorded, copied) == (f"key 'camera.calibration_file': {second} is not the file "
+                                                       f"the dataset's rig named ({first}), nor a copy of it")
+
+
+@pytest.mark.parametrize("extra, what", [(["campaign.yaml"], "campaign file"), (["--out", "elsewhere"], "--out")])
+def test_what_a_resume_cannot_use_is_refused_not_ignored(tmp_path, capsys, extra, what):
+    out = _unfinished(tmp_path, simulated_rig())
+    before = _files(out)
+    args = ["run", extra[0], "--resume", str(out)] if extra[0].endswith(".yaml") else ["run", "--resume", str(out),
+                                                                                      *extra]
+    assert main(args) == 2
+    assert f"give no {what} with it" in capsys.readouterr().err
+    assert _files(out) == before

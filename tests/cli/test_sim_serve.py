@@ -17,6 +17,7 @@ import socket
 import stat
 import subprocess
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -37,15 +38,17 @@ SPEED = 5.0
 WATCHDOG_S = 10.0
 
 
-@pytest.fixture
-def served(tmp_path: Path) -> Iterator[tuple[Path, Path, subprocess.Popen]]:
-    """A running `rig sim serve` (its rig file, its stderr log, the process); stopped with SIGTERM afterwards."""
-    base = tmp_path / "base-rig.yaml"
+@contextmanager
+def serving(folder: Path, name: str = "served-rig", speed: float = SPEED) -> Iterator[tuple[Path, Path,
+                                                                                        subprocess.Popen]]:
+    """A running `rig sim serve` (its rig file `<name>.yaml`, its stderr log, the process); stopped with SIGTERM
+    afterwards."""
+    base = folder / "base-rig.yaml"
     base.write_text(yaml.safe_dump({"name": "bench", "lamp": {"watchdog_s": WATCHDOG_S}}))
-    rig_file, log = tmp_path / "served-rig.yaml", tmp_path / "serve.log"
+    rig_file, log = folder / f"{name}.yaml", folder / f"{name}.log"
     with log.open("w") as err:
         server = start_rig("sim", "serve", "--rig-file", str(rig_file), "--rig", str(base),
-                           "--campaign", str(CAMPAIGN), "--speed", str(SPEED), stderr=err)
+                           "--campaign", str(CAMPAIGN), "--speed", str(speed), stderr=err)
     try:
         wait_until(rig_file.exists, server, "the served rig file")
         yield rig_file, log, server
@@ -59,6 +62,12 @@ def served(tmp_path: Path) -> Iterator[tuple[Path, Path, subprocess.Popen]]:
     assert server.returncode == 0, log.read_text()
     assert "stopped" in out
     assert not rig_file.exists()            # its addresses died with it
+
+
+@pytest.fixture
+def served(tmp_path: Path) -> Iterator[tuple[Path, Path, subprocess.Popen]]:
+    with serving(tmp_path) as server:
+        yield server
 
 
 def scpi(address: str, line: str) -> str:
@@ -142,6 +151,39 @@ def test_a_run_refused_as_busy_leaves_no_dataset_folder(served, tmp_path):
         _, err = refused.communicate(timeout=HANG_S)
     assert refused.returncode == 1 and "busy" in err and "nothing was written" in err, err
     assert not out.exists()
+
+
+def test_resume_after_a_server_restart_on_new_ports_uses_the_new_rig_file(tmp_path):
+    """Issue 30 item 4. Before: `--rig` was ignored, the resume dialled the old server's ports and failed with
+    "0 completed points kept"."""
+    out = tmp_path / "run"
+    with serving(tmp_path, "first", speed=20.0) as (first, _, _):
+        run = start_rig("run", str(CAMPAIGN), "--rig", str(first), "--out", str(out), "--quiet")
+        wait_until(lambda: pending_points(out) >= 2, run, "two points measured")
+        run.send_signal(signal.SIGINT)                  # the point in flight finished, lamp off
+        assert run.wait(timeout=HANG_S) == 130
+        old = load_rig_config(first)
+    kept = [row["point_id"] for row in brdf_rows(out)]
+    assert len(kept) >= 2
+    with serving(tmp_path, "second", speed=20.0) as (second, _, _):
+        new = load_rig_config(second)
+        assert new.devices.lamp.address != old.devices.lamp.address
+        resume = start_rig("run", "--resume", str(out), "--rig", str(second), "--quiet")
+        _, err = resume.communicate(timeout=HANG_S)
+    assert resume.returncode == 0, err
+    manifest = json.loads((out / "dataset.json").read_text())
+    ids = [row["point_id"] for row in brdf_rows(out)]
+    assert ids[:len(kept)] == kept and len(ids) == len(set(ids)) == manifest["counts"]["planned"] == 16
+    assert manifest["status"] == "complete"
+    assert manifest["resumes"][-1]["rig_file"] == str(second.resolve())
+    assert manifest["rig"]["config"]["devices"]["lamp"]["address"] == new.devices.lamp.address
+    resumed = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()
+               if '"resume"' in line][-1]
+    changes = resumed["rig_changes"]
+    assert changes["devices.lamp.address"] == [old.devices.lamp.address, new.devices.lamp.address]
+    assert changes["devices.camera.options.address"][1] == new.devices.camera.options["address"]
+    assert set(changes) <= {f"devices.{d}.address" for d in ("arm", "stage", "lamp", "meter")} | {
+        "devices.camera.options.address"}
 
 
 def test_the_default_sample_is_the_paper_campaigns_rm1():
