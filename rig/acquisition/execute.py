@@ -181,6 +181,6 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
         finally:
             if writer is not None:
                 writer.close()
-    return RunOutcome(ending.status, runner.measured if runner else 0, runner.rig_time() if runner else 0.0,
-                      time.perf_counter() - wall0, out, ending.message, exit_report.get("lamp_problem"),
-                      written=writer is not None)
+    kept = runner.measured if runner else len(done_rows)      # a resume's points are kept even if the rig is not
+    return RunOutcome(ending.status, kept, runner.rig_time() if runner else 0.0, time.perf_counter() - wall0, out,
+                      ending.message, exit_report.get("lamp_problem"), written=writer is not None)

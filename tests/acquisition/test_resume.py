@@ -223,3 +223,27 @@ def test_what_a_resume_cannot_use_is_refused_not_ignored(tmp_path, capsys, extra
     assert main(args) == 2
     assert f"give no {what} with it" in capsys.readouterr().err
     assert _files(out) == before
+
+
+def test_a_resume_whose_rig_cannot_be_reached_counts_the_points_it_keeps(tmp_path):
+    """Before: "0 completed points kept" for a resume that failed to connect, whatever the folder held."""
+    from contextlib import contextmanager
+
+    from rig.acquisition.execute import execute
+    from rig.core.errors import DeviceError
+    from rig.data.dataset import DatasetWriter
+
+    rig = simulated_rig()
+    campaign = load_campaign(CAMPAIGN)
+    out = _unfinished(tmp_path, rig)
+
+    @contextmanager
+    def unreachable():
+        raise DeviceError("camera", "cannot connect: [Errno 111] Connection refused")
+        yield
+
+    done = [{"point_id": f"00-00{i}"} for i in range(3)]
+    outcome = execute(campaign, CAMPAIGN, rig, build_plan(campaign, rig), out, unreachable(),
+                      writer=DatasetWriter.reopen(out), done_rows=done)
+    assert (outcome.status, outcome.measured, outcome.written) == ("failed", 3, True)
+    assert events(out)[-1]["event"] == "failed" and manifest(out)["status"] == "failed"
