@@ -136,6 +136,7 @@ def _described(which: str, entry: DeviceEntry, build: Any) -> str:
     """One device as `check_devices` found it: driver, the class it imports, where it would connect."""
     cls = getattr(build, "__self__", build)
     options = entry.driver_options()
+    shown: dict[str, Any]
     if entry.driver == entry.BUILTIN:       # rig's own driver: where it connects, and a positioner's drives
         shown = {key: options[key] for key in ("address", "map", "device_ids") if key in options}
     else:                                   # a plug-in's own keys, as the rig file gives them
