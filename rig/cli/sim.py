@@ -56,6 +56,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             written = write_rig_file(client, out)
         except FileExistsError:             # something appeared at the path since the check above
             return fail(_exists_message(out))
+        except OSError as exc:              # a read-only folder, a file system without hard links
+            return fail(f"--rig-file {out}: cannot write it there: {exc.strerror or exc}")
         print(f"rig sim serve: {base.name} rig (sample {sample[0]}) at {args.speed:g}× wall time; rig file {out}; "
               "SIGINT or SIGTERM stops it", flush=True)
         while not stop.wait(TICK_S):

@@ -9,6 +9,7 @@ rig_process.HANG_S as a hang guard, never asserted on.
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import os
 import re
@@ -269,3 +270,14 @@ def test_only_the_file_it_wrote_is_removed_on_exit(tmp_path):
         server.communicate(timeout=HANG_S)
     assert server.returncode == 0
     assert rig_file.read_text() == "name: mine now\n"
+
+
+def test_a_file_system_without_hard_links_is_one_message(tmp_path, capsys, monkeypatch):
+    """The file is linked into place (exclusive and atomic); where links are refused, exit 2 and nothing left."""
+    def refuse(src, dst):
+        raise OSError(errno.EPERM, "Operation not permitted")
+    monkeypatch.setattr(os, "link", refuse)
+    assert main(["sim", "serve", "--rig-file", str(tmp_path / "r.yaml")]) == 2
+    assert f"--rig-file {tmp_path / 'r.yaml'}: cannot write it there: Operation not permitted" in \
+        capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
