@@ -30,7 +30,7 @@ from matplotlib.ticker import MaxNLocator
 
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
-from rig.data.output_folder import removed_on_failure, require_new_output
+from rig.data.output_folder import new_folder, require_new_output
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import (
     NORMAL_INCIDENCE_DEG,
@@ -237,8 +237,9 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
                  fit: Mapping | None = None, *, plane_tol_deg: float = PLANE_TOL_DEG) -> list[Path]:
     """Write the figures of the module docstring into out_dir; returns their paths.
 
-    out_dir is created; an existing file or non-empty folder is refused (DatasetError), and a
-    failure part-way removes the figures already written.
+    out_dir is created; an existing file or non-empty folder is refused (DatasetError). The figures are
+    drawn in a temporary folder renamed to out_dir when all are there (`new_folder`): a failure or an
+    interrupt part-way leaves nothing, a kill at most the hidden temporary folder.
     """
     ds = dataset if isinstance(dataset, Dataset) else load(Path(dataset))
     if len(ds) == 0:
@@ -247,14 +248,13 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
     require_new_output(out_dir, hint="choose another --out")
     model = None if fit is None else _record_model(fit)
     paths = []
-    with removed_on_failure(out_dir):
-        out_dir.mkdir(parents=True, exist_ok=True)
+    with new_folder(out_dir) as folder:
         for s in np.unique(ds["series"]).astype(int):
             theta_i = ds.series_incidence_deg(s)[0]
             stem = f"s{s:02d}_ti{theta_i:02.0f}"
-            paths.append(plot_plane(ds, s, out_dir / f"plane_{stem}.png", model, plane_tol_deg))
-            paths.append(plot_lobe(ds, s, out_dir / f"lobe_{stem}.png", model))
+            paths.append(plot_plane(ds, s, folder / f"plane_{stem}.png", model, plane_tol_deg))
+            paths.append(plot_lobe(ds, s, folder / f"lobe_{stem}.png", model))
         if fit is not None:
-            paths.append(plot_residuals(ds, fit, out_dir / "fit_residuals.png"))
-    return paths
+            paths.append(plot_residuals(ds, fit, folder / "fit_residuals.png"))
+    return [out_dir / p.name for p in paths]
 

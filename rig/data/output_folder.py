@@ -81,6 +81,24 @@ def new_file(path: Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+@contextmanager
+def new_folder(path: Path) -> Iterator[Path]:
+    """Run the body that fills the new folder `path` in a temporary folder next to it; once the body is done,
+    rename it to `path` in one step (`path` absent or an empty folder, which the rename replaces: OSError if
+    anything appeared in it meanwhile). A kill leaves at most the hidden temporary folder, never a `path` half
+    full that a rerun would refuse; any failure, an interrupt included, removes the temporary folder."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}{TEMP_SUFFIX}")
+    tmp.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        tmp.mkdir()
+        yield tmp
+        os.rename(tmp, path)
+    finally:
+        if tmp.is_dir():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
 def format_bytes(n: float) -> str:
     for unit in ("bytes", "kB", "MB", "GB"):
         if abs(n) < 1000 or unit == "GB":

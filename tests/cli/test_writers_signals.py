@@ -54,13 +54,25 @@ def _ended(proc: subprocess.Popen) -> str:
 def test_a_signal_mid_plot_removes_the_figures(tape, tmp_path, sig):
     out = tmp_path / "figures"
     proc = start_rig("plot", str(tape), "--out", str(out))
-    wait_until(lambda: out.is_dir() and any(out.glob("*.png")), proc, "the first figure")
+    wait_until(lambda: any(tmp_path.glob(".figures.*/*.png")), proc, "the first figure (in the temporary folder)")
     proc.send_signal(sig)
     err = _ended(proc)
     assert proc.returncode == 128 + sig, err
     assert f"stopped by {signal.Signals(sig).name}" in err and "Traceback" not in err
-    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []                                # neither --out nor the temporary folder
     require_new_output(out)              # what refused the rerun: an --out that is not empty
+
+
+def test_a_kill_mid_plot_leaves_no_out_to_refuse_the_rerun(tape, tmp_path):
+    """SIGKILL cannot be cleaned up after: the figures are drawn in a hidden folder renamed when complete, so
+    `--out` does not exist and the rerun is accepted."""
+    out = tmp_path / "figures"
+    proc = start_rig("plot", str(tape), "--out", str(out))
+    wait_until(lambda: any(tmp_path.glob(".figures.*/*.png")), proc, "the first figure (in the temporary folder)")
+    proc.kill()
+    _ended(proc)
+    assert not out.exists()
+    require_new_output(out)
 
 
 @pytest.fixture
