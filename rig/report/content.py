@@ -223,7 +223,7 @@ def conditions(events: list[dict], manifest: Mapping) -> Conditions:
 def counts(ds: Dataset) -> Counts:
     """Planned, measured and skipped points (the manifest's counts where the run wrote them), skipped points by
     reason and flagged points by flag (from the files)."""
-    c = ds.manifest.get("counts") or {}
+    c = _part(ds.manifest, "counts")
     flagged = Counter(flag for flags in ds.flags for flag in flags)
     return Counts(planned=c.get("planned"), measured=len(ds), skipped=len(ds.skipped),
                   not_measured=c.get("not_measured"),
@@ -251,8 +251,8 @@ def median_u_rel(ds: Dataset) -> float | None:
 
 
 def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
-    config = (manifest.get("rig") or {}).get("config") or {}
-    camera, meter, geometry = (config.get(k) or {} for k in ("camera", "meter", "geometry"))
+    config = _part(_part(manifest, "rig"), "config")
+    camera, meter, geometry = (_part(config, k) for k in ("camera", "meter", "geometry"))
     rows = [("Camera calibration file", str(camera.get("calibration_file") or "none (sensor model)")),
             ("Camera calibration u (rel.)", _percent(camera.get("calibration_u_rel"))),
             ("Meter calibration", f"{_sig(meter.get('calibration_lx_per_a'))} lx/A"),
@@ -268,10 +268,17 @@ def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
                  ("Alignment u", f"{_sig(alignment.get('u_deg'))}°")]
     else:
         rows.append(("Alignment", "none (nominal arm zero)"))
-    footprint = manifest.get("footprint") or {}
+    footprint = _part(manifest, "footprint")
     if "view_half_angle_deg" in footprint:
         rows.append(("View footprint (half-angle)", f"{_sig(footprint['view_half_angle_deg'])}°"))
     return rows
+
+
+def _part(record: Mapping, key: str) -> Mapping:
+    """An object inside the manifest, or an empty one where it is absent or not an object (an edited file):
+    the report then says "–" for what it would have shown."""
+    value = record.get(key)
+    return value if isinstance(value, Mapping) else {}
 
 
 def _sig(value: Any, digits: int = 4) -> str:
@@ -322,20 +329,20 @@ def road_summary(road: Mapping) -> RoadSummary:
 def collect(ds: Dataset, fit: Mapping | None = None, road: Mapping | None = None) -> ReportContent:
     """Everything the report shows, from a loaded dataset and the optional fit and road records."""
     m = ds.manifest
-    campaign, sample, rig, software = (m.get(k) or {} for k in ("campaign", "sample", "rig", "software"))
-    config = rig.get("config") or {}
+    campaign, sample, rig, software = (_part(m, k) for k in ("campaign", "sample", "rig", "software"))
+    filters = _part(_part(rig, "config"), "attenuator").get("filters")
     events = read_events(ds.path)
     return ReportContent(
-        dataset=ds, sample_id=str(sample.get("id") or ds.path.name),
+        dataset=ds, sample_id=ds.sample_id(),
         sample_description=str(sample.get("description") or ""),
         campaign_name=str(campaign.get("name") or "–"), campaign_file=str(campaign.get("file") or "–"),
         campaign_sha256=str(campaign.get("sha256") or "–"), status=str(m.get("status") or "–"),
         created_utc=str(m.get("created_utc") or "–"), finished_utc=str(m.get("finished_utc") or "–"),
         software_version=str(software.get("version") or "–"), report_version=__version__,
         rig_name=str(rig.get("name") or "–"), simulated=bool(rig.get("simulated")),
-        identities={str(k): str(v) for k, v in (rig.get("identities") or {}).items()},
+        identities={str(k): str(v) for k, v in _part(rig, "identities").items()},
         calibrations=_calibrations(m),
-        filters=[dict(f) for f in ((config.get("attenuator") or {}).get("filters") or [])],
+        filters=[dict(f) for f in (filters if isinstance(filters, list) else []) if isinstance(f, Mapping)],
         series=_series(ds), counts=counts(ds), conditions=conditions(events, m), budget=budget(ds),
         median_u_rel=median_u_rel(ds),
         fit=fit_summary(fit) if fit is not None else None, road=road_summary(road) if road is not None else None)

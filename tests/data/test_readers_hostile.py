@@ -166,3 +166,11 @@ def test_resume_names_the_hostile_line_of_events(tmp_path, line, said):
     (tmp_path / "events.jsonl").write_text(f'{{"event": "started"}}\n{line}\n')
     with pytest.raises(ResumeError, match=rf"events.jsonl:2: {said}"):
         _pending_rows(tmp_path)
+
+
+@pytest.mark.parametrize("rig", [{"config": [1]}, {"config": {"camera": [1], "attenuator": {"filters": [1, "x"]}},
+                                                   "identities": [1]}])
+def test_the_report_shows_a_dash_for_manifest_parts_of_the_wrong_type(work, capsys, rig):
+    """Deeper in the manifest, what the report would show is shown as absent, not a traceback."""
+    _manifest_set(work / "ds", "rig", rig)
+    assert main(["report", str(work / "ds"), "--out", str(work / "r.html")]) == 0, capsys.readouterr().err
