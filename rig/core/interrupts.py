@@ -91,7 +91,7 @@ def interruptible(command: Callable[[A], int]) -> Callable[[A], int]:
                 return command(args)
         except KeyboardInterrupt as exc:
             signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-            print(f"rig: stopped by {signal.Signals(signum).name}; the unfinished output was removed",
+            print(f"rig: stopped by {signal.Signals(signum).name}; nothing unfinished was left behind",
                   file=sys.stderr)
             return 128 + int(signum)
     return run

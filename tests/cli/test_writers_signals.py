@@ -154,4 +154,4 @@ def test_an_interruptible_command_says_which_signal_and_exits_128_plus_it(capsys
         return 0
 
     assert command(None) == 128 + signal.SIGHUP
-    assert capsys.readouterr().err == "rig: stopped by SIGHUP; the unfinished output was removed\n"
+    assert capsys.readouterr().err == "rig: stopped by SIGHUP; nothing unfinished was left behind\n"
