@@ -61,6 +61,9 @@ def read_directions(path: Path) -> np.ndarray:
 
 
 def predictor_for(ds: Dataset, method: str, fit_path: str | None, model: str | None) -> Predictor:
+    """The predictor of `rig predict` and `rig export --format road`; ValueError naming what is missing."""
+    if len(ds) == 0:
+        raise ValueError(f"{ds.path}: no measured point to predict from (brdf.csv holds no row)")
     if method == "interpolate":
         if fit_path or model:
             raise ValueError("--fit and --model go with --method model")

@@ -1,6 +1,7 @@
-"""Messages of `rig plan` and `rig fit` that said something else than what is so (issue 30, smaller items):
-an incidence of 84.99° printed as 85.0°; an empty dataset reported as "no row without the flags …"; the
-dataset's folder named twice; a `--json` written over an existing file."""
+"""Messages of `rig plan`, `rig fit`, `rig predict` and the road export that said something else than what is so
+(issue 30, smaller items): an incidence of 84.99° printed as 85.0°; an empty dataset reported as "no row without
+the flags …" (or "no incidence has three … views"); the dataset's folder named twice; a `--json` written over an
+existing file."""
 
 import json
 from pathlib import Path
@@ -56,3 +57,17 @@ def test_fit_json_never_overwrites(imported, tmp_path, capsys):
     existing.write_text('{"kept": true}')
     err = _error(["fit", str(imported), "--model", "lambert", "--json", str(existing)], capsys)
     assert "already exists" in err and json.loads(existing.read_text()) == {"kept": True}
+
+
+@pytest.mark.parametrize("command", [
+    ["predict", "--at", "AT", "--out", "OUT"],
+    ["predict", "--at", "AT", "--method", "model", "--model", "lambert", "--out", "OUT"],
+    ["export", "--format", "road", "--model", "lambert", "--out", "OUT"]])
+def test_predict_and_road_of_an_empty_dataset_say_so(imported, tmp_path, capsys, command):
+    brdf = imported / "brdf.csv"
+    brdf.write_text(brdf.read_text().splitlines()[0] + "\n")
+    (tmp_path / "at.csv").write_text("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n30,0,30,180\n")
+    files = {"AT": str(tmp_path / "at.csv"), "OUT": str(tmp_path / "out")}
+    err = _error([command[0], str(imported), *(files.get(a, a) for a in command[1:])], capsys)
+    assert "no measured point to predict from" in err and err.count(str(imported)) == 1
+    assert not (tmp_path / "out").exists()
