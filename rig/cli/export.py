@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.analysis.held_out import interpolating_predictor
+from rig.analysis.resampled import resampled
 from rig.analysis.result_files import read_fit
 from rig.analysis.road import road_json, road_quantities, write_road_json
 from rig.cli.predict import predictor_for
@@ -100,6 +101,8 @@ def _export_radiance(args: argparse.Namespace) -> list[Path]:
             written = export_radiance(ds, folder, isotropic=not args.anisotropic)
         return [out / p.name for p in written]
     fit = read_fit(args.fit) if args.fit else None
+    if args.source == "data" and not args.anisotropic:
+        ds = resampled(ds)       # the reconstruction on a dense grid: pabopto2bsdf cannot follow sparse lobes
     return export_radiance_xml(ds, out, source=args.source, fit=fit, isotropic=not args.anisotropic,
                                resolution_log2=args.resolution)
 

@@ -3,8 +3,8 @@ between incidences on incidences it was not given, calibrates its between-incide
 
 import numpy as np
 import pytest
-from test_validation import planned_dataset
 
+from planned_datasets import planned_dataset
 from rig.analysis.held_out import HeldOut, held_out, interpolating_predictor
 from rig.analysis.predict import measured_domain
 

@@ -1,11 +1,10 @@
 """The validation metric (rig.analysis.validation) on cases with a closed form."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from repo_paths import CAMPAIGNS
+from planned_datasets import RM1, planned_dataset
 from rig.analysis.predict import InterpolatingPredictor, measured_domain
 from rig.analysis.prediction import Prediction
 from rig.analysis.validation import (
@@ -21,13 +20,8 @@ from rig.analysis.validation import (
     summarise,
     validation_set,
 )
-from rig.config.campaign import load_campaign
-from rig.config.rigfile import simulated_rig
-from rig.data.dataset_reader import Dataset
 from rig.physics import geometry as geo
-from rig.planning.plan import build_plan
 
-RM1 = {"kd": 0.620, "n": 24.0, "k1": 0.158, "k2": 0.0415, "k3": 0.00133, "k4": 5.47}
 DOMAIN = Domain(theta_i_min_deg=0.0, theta_i_max_deg=85.0, theta_o_max_deg=85.0, occlusion_deg=2.5)
 
 
@@ -121,20 +115,6 @@ def test_the_truth_scores_zero_and_a_scaled_truth_its_scale():
     assert off.albedo_rel == pytest.approx(0.02, rel=1e-9)
     assert off.road_rel["R_L"] == pytest.approx(0.02, rel=1e-9) and off.road_rel["Qd"] == pytest.approx(0.02, rel=1e-9)
     assert not off.road_extrapolated
-
-
-def planned_dataset(drop=lambda ti, to, po: np.zeros(ti.shape, bool)) -> Dataset:
-    """The paper campaign's planned directions with RM1's closed-form values and a 0.3 % u, less the `drop`ped."""
-    campaign, rig = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml"), simulated_rig()
-    pts = build_plan(campaign, rig).points
-    a = np.array([(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg) for p in pts])
-    a = a[~drop(a[:, 0], a[:, 2], a[:, 3] - a[:, 1])]
-    f = TruthPredictor("retrophong", RM1).predict(*a.T).brdf_per_sr
-    columns = {"theta_i_deg": a[:, 0], "phi_i_deg": a[:, 1], "theta_o_deg": a[:, 2], "phi_o_deg": a[:, 3],
-               "brdf_per_sr": f, "u_brdf_per_sr": 0.003 * f}
-    n = len(f)
-    return Dataset(path=Path("mem"), manifest={}, columns=columns, point_id=[f"p{k}" for k in range(n)],
-                   flags=[()] * n, time_utc=[""] * n, skipped=[], header=tuple(columns))
 
 
 def test_a_dataset_with_a_hole_scores_worse_inside_the_reference_than_the_full_one():
