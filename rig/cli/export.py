@@ -96,6 +96,8 @@ def _export_radiance(args: argparse.Namespace) -> list[Path]:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ExportError(f"{out} already exists; choose another --out (nothing was overwritten)")
     ds = load(Path(args.dataset))
+    if len(ds) == 0:                             # before anything is made of the points (e.g. resampled)
+        raise RadianceError(f"{ds.path}: no measured point to export")
     if args.format == "radiance":
         with new_folder(out) as folder:          # renamed to --out when every file is there
             written = export_radiance(ds, folder, isotropic=not args.anisotropic)
