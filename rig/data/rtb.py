@@ -36,29 +36,26 @@ class RtbError(ValueError):
     """The r-table cannot be written as an .RTB; the message says which value and why."""
 
 
-def _finite(values: Sequence[Any], what: str) -> list[float]:
-    out = []
-    for k, v in enumerate(values):
-        if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
-            raise RtbError(f"{what}[{k}] is {v!r}, not a finite number: an .RTB has no place for an undefined "
-                           "value (see road.json's 'undefined')")
-        out.append(float(v))
-    return out
+def _number(value: Any, what: str) -> float:
+    if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+        raise RtbError(f"{what} is {value!r}, not a finite number: an .RTB has no place for an undefined value "
+                       "(see road.json's 'undefined')")
+    return float(value)
 
 
 def rtb_lines(document: Mapping[str, Any], name: str) -> list[str]:
     """The lines of the .RTB of a road.json document (rig.analysis.road.road_json), in the article's order."""
     table = document["r_table"]
-    tan_eps = _finite(table["tan_gamma"], "r_table.tan_gamma")
-    beta = _finite(table["beta_deg"], "r_table.beta_deg")
+    tan_eps = [_number(v, f"r_table.tan_gamma[{i}]") for i, v in enumerate(table["tan_gamma"])]
+    beta = [_number(v, f"r_table.beta_deg[{j}]") for j, v in enumerate(table["beta_deg"])]
     rows = table["r_x1e4"]                              # [tan γ][β]
     if len(rows) != len(tan_eps) or any(len(row) != len(beta) for row in rows):
         raise RtbError(f"r_table.r_x1e4 is not {len(tan_eps)} rows of {len(beta)} values")
-    (q0,) = _finite([document["Q0"]], "Q0")
-    r = [_finite([rows[i][j] for i in range(len(tan_eps))], f"r_table.r_x1e4[:][{j}]") for j in range(len(beta))]
+    r = [_number(rows[i][j], f"r_table.r_x1e4[{i}][{j}] (tan γ {tan_eps[i]:g}, β {beta[j]:g}°)")
+         for j in range(len(beta)) for i in range(len(tan_eps))]          # tan ε varying fastest
     label = " ".join(name.split()) or "rig r-table"     # one line: DIALux reads the name as line 2
-    return [RTB_TAG, label, str(len(tan_eps)), *map(repr, tan_eps), str(len(beta)), *map(repr, beta), repr(q0),
-            *(repr(v) for column in r for v in column)]
+    return [RTB_TAG, label, str(len(tan_eps)), *map(repr, tan_eps), str(len(beta)), *map(repr, beta),
+            repr(_number(document["Q0"], "Q0")), *map(repr, r)]
 
 
 def write_rtb(document: Mapping[str, Any], out: Path, name: str) -> Path:
