@@ -34,13 +34,8 @@ from scipy.optimize import least_squares
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.analysis.fit import (  # noqa: E402
-    DE_MAXITER,
-    DE_POPSIZE,
-    GLOBAL_POINTS,
-    FitResult,
-    fit_dataset,
-)
+from rig.analysis.fit import FitResult, fit_dataset  # noqa: E402
+from rig.analysis.fit_search import DE_MAXITER, DE_POPSIZE, SEARCH_POINTS, SOBOL_STARTS  # noqa: E402
 from rig.cli.fit import format_comparison  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
@@ -141,7 +136,8 @@ def main() -> int:
         data = datasets(Path(args.dataset) if args.dataset else Path(tmp))
         print(f"machine : {machine()}")
         print(f"settings: weighting {weighting}, loss linear, default starts; global stage differential_evolution "
-              f"popsize {DE_POPSIZE}×k, ≤ {DE_MAXITER} generations on ≤ {GLOBAL_POINTS} points; "
+              f"popsize {DE_POPSIZE}×k, ≤ {DE_MAXITER} generations, then local runs from its best members and "
+              f"{SOBOL_STARTS} Sobol points, on ≤ {SEARCH_POINTS} points; "
               f"repeat {args.repeat}, median wall time")
         print("datasets: " + ", ".join(f"{rm} {len(ds)} points ({ds.path})" for rm, ds in data.items()))
 

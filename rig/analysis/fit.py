@@ -6,11 +6,12 @@ their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
 * every free parameter lives on the unit cube: log-uniform between its bounds when the
   model lists it in `log_scale` (exponents, tiny coefficients), affine otherwise, so one
   finite-difference step and one Latin hypercube fit all of them and bounds stay reachable;
-* global stage: `differential_evolution` (Latin-hypercube population seeded with the
-  model's `typical` values) on a subsample, then bounded `least_squares` on all points
-  from its best member, from `typical` and from the next best distinct members, and a
-  polish of the best; plateaus where a lobe is too narrow to be seen trap local starts,
-  the population does not; the agreement of the starts is reported;
+* global stage (rig/analysis/fit_search.py): on a subsample, `differential_evolution` (a
+  Latin-hypercube population seeded with the model's `typical` values), then bounded
+  `least_squares` from its best distinct members, from `typical` and from a seeded Sobol set
+  spread over the whole cube; the best distinct optima are refined on all points and the best of
+  those polished. Plateaus where a lobe is too narrow to be seen trap local starts, the population
+  and the spread starts do not; how many of the runs reached the best cost is reported;
 * residuals are weighted by `u_brdf_per_sr` (χ² with a meaningful χ²/dof) or unweighted
   (the paper's RMSE); `rig fit` chooses by the data (`choose_weighting`): weighted when every row
   has a usable u, unweighted with a notice when none has (an imported ALTA file without #VS),
@@ -28,13 +29,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import differential_evolution, least_squares
 
+from rig.analysis.fit_search import SEARCH_POINTS, local_run, search, search_rows
 from rig.analysis.metrics import goodness_of_fit
 from rig.data.dataset_format import usable_u
 from rig.data.dataset_reader import Dataset
@@ -44,21 +45,14 @@ WEIGHTINGS = ("uncertainty", "none")
 LOSSES = ("linear", "soft_l1", "huber")
 #: Rows with these flags carry no usable BRDF value.
 UNUSABLE_FLAGS = ("roi_unlit", "roi_saturated")
-#: Points the global stage works on; the local runs always use all of them.
-GLOBAL_POINTS = 400
-#: differential_evolution population per free parameter, and its generations.
-DE_POPSIZE, DE_MAXITER = 15, 40
+#: A parameter this close to a bound on the unit cube is at it (a trust-region solver stops short of it).
+AT_BOUND = 1e-4
 #: A singular value below this fraction of the largest marks an unconstrained direction.
 RCOND = 1e-9
 #: A parameter whose weight in an unconstrained direction exceeds this is undetermined.
 NULL_WEIGHT = 1e-3
 #: Residual given to a non-finite model value, so a model's overflow steers the optimiser away.
 NONFINITE_RESIDUAL = 1e12
-#: Starts closer than this on the unit cube (max norm) are the same start.
-DISTINCT = 1e-3
-#: Starts within this relative cost of the best one, or within this fraction of the cost of a
-#: zero model (exact data have a best cost of ~0), count as having found it.
-SAME_COST_REL, SAME_COST_ABS = 1e-4, 1e-12
 
 
 @dataclass(frozen=True)
@@ -178,17 +172,6 @@ def mad_scale(r: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(r)))
 
 
-def _starts(best: np.ndarray, typ: np.ndarray, ranked: np.ndarray, n: int) -> list[np.ndarray]:
-    """The global best, the typical values, then the best other members that differ, n in all."""
-    chosen: list[np.ndarray] = []
-    for x in (best, typ, *ranked):
-        if len(chosen) == max(n, 1):
-            break
-        if all(np.max(np.abs(x - c)) > DISTINCT for c in chosen):
-            chosen.append(x)
-    return chosen
-
-
 def _covariance(jac: np.ndarray, variance: float) -> tuple[np.ndarray, np.ndarray]:
     """Covariance in unit-cube coordinates and the mask of undetermined parameters.
 
@@ -230,7 +213,8 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
     """Fit `model_name` to f(wi, wo) (SCS unit vectors, sr⁻¹) by bounded, transformed least squares.
 
     weighting "uncertainty" minimises Σ((model − f)/u)², "none" the paper's Σ(model − f)².
-    `starts` local runs follow the global stage; `fixed` holds parameters at given values.
+    The `starts` best distinct optima of the global stage are refined on all points (when it worked on a
+    subsample); `fixed` holds parameters at given values.
     """
     t0 = time.perf_counter()
     model = get_model(model_name)
@@ -254,29 +238,24 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
         """Robust-loss scale: MAD of the residuals, floored so noiseless data do not make it pure L1."""
         return max(mad_scale(residuals(x, rows)), 1e-3 * float(np.median(np.abs(f / sigma))))
 
-    sub = np.sort(rng.choice(n, GLOBAL_POINTS, replace=False)) if n > GLOBAL_POINTS else slice(None)
+    subsampled = n > SEARCH_POINTS
+    sub = search_rows(f, rng) if subsampled else slice(None)
     x_typ = space.to_unit({**model.typical, **space.fixed})
-    scale = scale_at(x_typ, sub) if loss != "linear" else 1.0
-    glob = differential_evolution(lambda x: _cost(residuals(x, sub), loss, scale), [(0.0, 1.0)] * k,
-                                  popsize=DE_POPSIZE, maxiter=DE_MAXITER, x0=x_typ, polish=False, seed=rng)
-    if loss != "linear":
-        scale = scale_at(glob.x, slice(None))
 
-    def local(x0: np.ndarray, solver: str):
-        return least_squares(residuals, x0, bounds=(0.0, 1.0), loss=loss, f_scale=scale, tr_solver=solver)
+    def scale_on(rows: np.ndarray | slice) -> Callable[[np.ndarray], float]:
+        return (lambda x: scale_at(x, rows)) if loss != "linear" else (lambda x: 1.0)
 
-    # The starts use LSMR: the dense solver's SVD of the (N × k) Jacobian at every iteration runs
-    # on multithreaded BLAS and costs more than the model (5–50× on a loaded 2-core machine).
-    # The polish from the best start is dense: a few iterations, and it settles flat directions.
-    ranked = glob.population[np.argsort(glob.population_energies)]
-    runs = [local(x0, "lsmr") for x0 in _starts(glob.x, x_typ, ranked, starts)]
-    costs = np.array([_cost(r.fun, loss, scale) for r in runs])
-    final = runs[int(np.argmin(costs))]
-    zero_model_cost = _cost(f / sigma, loss, scale)
-    at_best = int(np.sum(costs <= costs.min() * (1 + SAME_COST_REL) + SAME_COST_ABS * zero_model_cost))
-    if loss != "linear":            # the M-estimator's scale, re-estimated at the solution
-        scale = scale_at(final.x, slice(None))
-    final = local(final.x, "exact")
+    def cost(r: np.ndarray, scale: float) -> float:
+        return _cost(r, loss, scale)
+
+    found = search(lambda x: residuals(x, sub), cost, scale_on(sub), x_typ, rng, loss, starts, f[sub] / sigma[sub])
+    best = found.optima[0]
+    if subsampled:        # the subsample ranks the basins; each is refined on all points, the best kept
+        scale = scale_on(slice(None))(best)
+        runs = [local_run(residuals, x0, loss, scale, "lsmr") for x0 in found.optima]
+        best = runs[int(np.argmin([cost(r.fun, scale) for r in runs]))].x
+    scale = scale_on(slice(None))(best)        # the M-estimator's scale, re-estimated at the solution
+    final = local_run(residuals, best, loss, scale, "exact")
     x = final.x
     r = residuals(x)
     chi2_dof = float(np.sum(r ** 2) / dof) if weighting == "uncertainty" else None
@@ -296,11 +275,12 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
                   for p in space.free}
     return FitResult(
         model=model.name, params={p: params[p] for p in model.param_names}, stderr=stderr, covariance=covariance,
-        metrics=goodness_of_fit(f, fr), chi2_dof=chi2_dof, n_points=n, n_starts=len(runs),
-        n_starts_at_best=at_best, converged=bool(final.status > 0), message=final.message, nfev=nfev,
+        metrics=goodness_of_fit(f, fr), chi2_dof=chi2_dof, n_points=n, n_starts=found.n_runs,
+        n_starts_at_best=found.n_at_best, converged=bool(final.status > 0), message=final.message, nfev=nfev,
         wall_s=time.perf_counter() - t0, weighting=weighting, loss=loss,
         f_scale=scale if loss != "linear" else None, fixed=tuple(space.fixed),
-        at_bound=tuple(p for p, a in zip(space.free, final.active_mask) if a != 0),
+        at_bound=tuple(p for p, a, xi in zip(space.free, final.active_mask, x)
+                       if a != 0 or min(xi, 1.0 - xi) < AT_BOUND),
         undetermined=tuple(p for p, u_ in zip(space.free, undetermined) if u_))
 
 

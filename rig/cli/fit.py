@@ -29,7 +29,7 @@ def format_report(result: FitResult) -> str:
         lines.append(f"  {name:<8s} {value:12.6g}  {note}" + ("  [at bound]" if name in result.at_bound else ""))
     m = result.metrics
     lines.append(f"RMSE {m['rmse']:.4g} sr⁻¹   NRMSE {m['nrmse']:.4g}   NCC {_fmt(m['ncc'], '.4f')}")
-    lines.append(f"converged {'yes' if result.converged else 'NO'} ({result.message}); "
+    lines.append(f"converged {_status(result)} ({result.message}); "
                  + (f"χ²/dof {result.chi2_dof:.3g}; " if result.chi2_dof is not None else "")
                  + f"{result.n_starts_at_best}/{result.n_starts} starts reached the best cost; "
                  f"{result.nfev} model evaluations; {result.wall_s:.2f} s")
@@ -41,15 +41,29 @@ def _fmt(v: float, spec: str) -> str:
     return format(v, spec) if math.isfinite(v) else "—"
 
 
+def _status(result: FitResult) -> str:
+    """'yes' only for an optimum inside the bounds: a solver that stopped on a bound has converged to the
+    bound, which says the model cannot follow the data there, not that it found their optimum."""
+    if not result.converged:
+        return "NO"
+    return "yes" if not result.at_bound else "at bound"
+
+
 def format_comparison(results: list[FitResult]) -> str:
-    """Table-6-like: one line per model, best RMSE first."""
-    head = f"{'model':<16s} {'RMSE':>9s} {'NRMSE':>9s} {'NCC':>7s} {'wall s':>7s} {'conv':>4s}  parameters"
+    """Table-6-like: one line per model, best RMSE first; parameters at a bound marked in the line."""
+    head = (f"{'model':<16s} {'RMSE':>9s} {'NRMSE':>9s} {'NCC':>7s} {'wall s':>7s} {'conv':>8s} {'starts':>6s}"
+            "  parameters")
     rows = [head, "-" * len(head)]
     for r in sorted(results, key=lambda r: r.metrics["rmse"]):
         m = r.metrics
-        params = ", ".join(f"{k} {v:.3g}" for k, v in r.params.items())
+        params = ", ".join(f"{k} {v:.3g}" + (" [at bound]" if k in r.at_bound else "") for k, v in r.params.items())
         rows.append(f"{r.model:<16s} {m['rmse']:9.4g} {m['nrmse']:9.4g} {_fmt(m['ncc'], '7.3f'):>7s} "
-                    f"{r.wall_s:7.2f} {'yes' if r.converged else 'NO':>4s}  {params}")
+                    f"{r.wall_s:7.2f} {_status(r):>8s} {f'{r.n_starts_at_best}/{r.n_starts}':>6s}  {params}")
+    rows.append("")
+    if any(r.at_bound for r in results):
+        rows.append("[at bound]: the best fit lies on the parameter's limit, where the model cannot follow the data "
+                    "(conv 'at bound', not 'yes')")
+    rows.append("starts: the global stage's local runs that reached the best cost, of all of them")
     return "\n".join(rows)
 
 

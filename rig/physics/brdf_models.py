@@ -318,9 +318,13 @@ def albedo(model: BrdfModel, params: Mapping[str, float], theta_i_deg: np.ndarra
     return np.sum(f * (mu * w_mu)[:, None] * w_phi, axis=(-2, -1))
 
 
+#: Bounds are physical ranges (docs/fit.md). Albedo kd, Schlick f0 / R0: fractions of the incident light.
 _UNIT = (0.0, 1.0)
+#: Lobe exponents: cos^n is √(2 ln 2 / n) rad wide at half maximum, 0.21° at 1e5 (Table 7's narrowest: 1.65e4,
+#: 0.5°; Table 2's nearest views: 3.3°); at 0.1 it is flat within 20 % over the hemisphere, a diffuse term.
 _EXPONENT = (0.1, 1e5)
-_ROUGHNESS = (0.03, 1.0)          # perceptual: α = roughness² from about 1e-3 to 1
+#: Perceptual GGX roughness: α = roughness² from 1e-3 (a lobe of 0.06°, a mirror) to 1 (D uniform in h).
+_ROUGHNESS = (0.03, 1.0)
 
 MODELS: dict[str, BrdfModel] = {
     m.name: m for m in (
@@ -332,6 +336,8 @@ MODELS: dict[str, BrdfModel] = {
                   reciprocal=True, energy_conserving=True,
                   citation="Lafortune 1994; Spieringhs et al. 2023 Eq. 3"),
         BrdfModel(name="retrophong", evaluate=retrophong,
+                  # k1–k3: at 10 one lobe returns ten times the light falling on the sample; k2, k3 down to
+                  # 1e-15, below any noise (RM3's k2: 1.53e-12); k4 ≤ 50: ks × e^50 at grazing (Table 7: 3.4–8.7)
                   bounds={"kd": _UNIT, "n": _EXPONENT, "k1": (0.0, 10.0), "k2": (1e-15, 10.0),
                           "k3": (1e-15, 10.0), "k4": (0.0, 50.0)},
                   log_scale=frozenset({"n", "k2", "k3"}),
@@ -339,11 +345,13 @@ MODELS: dict[str, BrdfModel] = {
                   reciprocal=False, energy_conserving=False,
                   citation="Spieringhs et al. 2023 Eqs. 15, 17, 18; Table 3 (RM1)"),
         BrdfModel(name="oren_nayar", evaluate=oren_nayar,
+                  # σ, the facets' slope angle spread in radians: 0 (a flat Lambertian) to π/2 (vertical)
                   bounds={"roughness": (0.0, np.pi / 2), "albedo": _UNIT}, log_scale=frozenset(),
                   typical={"roughness": 0.865, "albedo": 0.268},
                   reciprocal=True, energy_conserving=False,
                   citation="Oren & Nayar 1994 Eq. 30; Spieringhs et al. 2023 Table 6 (RM1)"),
         BrdfModel(name="beckmann_retro", evaluate=beckmann_retro,
+                  # α, the RMS facet slope: 1e-3 a lobe of 0.06°; at 1e5 D is flat and 1e-10 sr⁻¹, no lobe
                   bounds={"kd": _UNIT, "alpha": (1e-3, 1e5), "r0": _UNIT}, log_scale=frozenset({"alpha"}),
                   typical={"kd": 0.796, "alpha": 8.20, "r0": 0.995},
                   reciprocal=True, energy_conserving=False,
@@ -355,6 +363,8 @@ MODELS: dict[str, BrdfModel] = {
                   reciprocal=True, energy_conserving=False,
                   citation="Spieringhs et al. 2023 Eqs. 8-9, Table 7 (RM1); Belcour et al. 2014 Eq. 3"),
         BrdfModel(name="abc_retro", evaluate=abc_retro,
+                  # A: peak, sr⁻¹ (tapes: ~1e2); B: inverse width (1e4: half maximum at 0.8° for C = 1); C → ∞ at
+                  # fixed B·C is the Gaussian exp(−BC(1 − cos)), within a few % at C = 100: at C's bound, that limit
                   bounds={"kd": _UNIT, "r0": _UNIT,
                           "a_b": (1e-6, 1e3), "b_b": (1e-6, 1e4), "c_b": (1e-4, 100.0),
                           "a_r": (1e-6, 1e3), "b_r": (1e-6, 1e4), "c_r": (1e-4, 100.0)},

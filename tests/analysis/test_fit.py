@@ -293,7 +293,7 @@ def test_cli_all_models_table_sorted_by_rmse(rig_fit, simulated, tmp_path, capsy
     assert rig_fit(str(simulated["rm2"].path), "--model", "all", "--unweighted", "--json", str(out)) == 0
     lines = capsys.readouterr().out.splitlines()
     header = next(i for i, line in enumerate(lines) if line.startswith("model"))
-    rows = [line.split() for line in lines[header + 2:]]
+    rows = [line.split() for line in lines[header + 2:lines.index("", header)]]    # notes follow a blank line
     assert sorted(r[0] for r in rows) == sorted(MODELS)
     assert rows[0][0] == "retrophong"                      # the simulated truth fits best
     rmse = [float(r[1]) for r in rows]
