@@ -23,6 +23,7 @@ when installed, is only asked whether its OpenPBR has the input.
 
 from __future__ import annotations
 
+import importlib
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
@@ -54,7 +55,7 @@ def openpbr_retroreflectivity() -> bool | None:
     """Whether the installed MaterialX's `open_pbr_surface` declares `specular_retroreflectivity`; None when the
     MaterialX package is not installed."""
     try:
-        import MaterialX as mx
+        mx = importlib.import_module("MaterialX")      # optional; untyped (no stubs), hence not a plain import
     except ImportError:
         return None
     lib = mx.createDocument()
