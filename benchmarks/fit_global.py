@@ -12,7 +12,7 @@ Datasets: the paper campaigns (campaigns/spieringhs2023-rm1..3.yaml) and the ste
 (benchmarks/fit_steep.yaml: RetroPhong RM3, n = 68, θi to 85°, few views on the lobe) measured on the
 simulated rig, and the CEA tapes (tests/data/cea-retro, imported as `rig import` does; all points).
 
-    python benchmarks/fit_global.py [--dataset DIR] [--only rm1,steep,yellow,...] [--models a,b]
+    python benchmarks/fit_global.py [--dataset DIR] [--only rm1,steep,yellow,...] [--models a,b] [--unweighted]
 
 The random starts cost minutes on the CEA tapes and the paper campaigns (abc_retro: ~20 s each).
 """
@@ -88,6 +88,7 @@ def main() -> int:
     ap.add_argument("--dataset", metavar="DIR", help="folder for (or with) the datasets, reused across runs")
     ap.add_argument("--only", default=",".join([*CAMPAIGNS, *TAPES]), help="datasets, comma-separated")
     ap.add_argument("--models", default=",".join(sorted(MODELS)), help="models, comma-separated")
+    ap.add_argument("--unweighted", action="store_true", help="fit every dataset unweighted (the paper's RMSE)")
     args = ap.parse_args()
     print(f"machine : {machine()}")
     print(f"settings: `rig fit` defaults (seed 0) vs the best of {RANDOM_STARTS} random starts (seed {RANDOM_SEED}); "
@@ -99,7 +100,7 @@ def main() -> int:
             ds = dataset(name, folder)
             wi, wo = ds.directions()
             f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
-            weighting, _ = choose_weighting(u, list(ds.point_id), None)
+            weighting, _ = choose_weighting(u, list(ds.point_id), "none" if args.unweighted else None)
             sigma = u if weighting == "uncertainty" else np.ones_like(f)
             print(f"\n{name}: {len(ds)} points, weighting {weighting}")
             print(f"{'model':15s} {'fit RMS':>10s} {'best of 20':>10s} {'rel diff':>9s} {'fit s':>6s} "

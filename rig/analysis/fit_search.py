@@ -39,6 +39,8 @@ SOBOL_STARTS, MEMBER_STARTS = 16, 4
 #: Iterations of a search run per free parameter (scipy's default is 100): nearly all runs settle in
 #: 10–80; one crawling along a plateau is cut, and the refinement on all points finishes the best.
 SEARCH_NFEV_PER_PARAM = 50
+#: Their tolerances (scipy's default 1e-8): a search run only has to find its basin.
+SEARCH_TOL = 1e-5
 #: Starts closer than this on the unit cube (max norm) are the same start.
 DISTINCT = 1e-3
 #: Runs within this relative cost of the best one, or within this fraction of the cost of a
@@ -79,7 +81,7 @@ def n_at_best(costs: np.ndarray, zero_model_cost: float) -> int:
 
 
 def local_run(residuals: Residuals, x0: np.ndarray, loss: str, scale: float, solver: str,
-              max_nfev: int | None = None) -> OptimizeResult:
+              max_nfev: int | None = None, tol: float = 1e-8) -> OptimizeResult:
     """Bounded least_squares on the unit cube.
 
     LSMR for the many starts: the dense solver's SVD of the (N × k) Jacobian at every iteration runs
@@ -89,6 +91,7 @@ def local_run(residuals: Residuals, x0: np.ndarray, loss: str, scale: float, sol
     from a start near a bound).
     """
     return least_squares(residuals, x0, bounds=(0.0, 1.0), loss=loss, f_scale=scale, max_nfev=max_nfev,
+                         ftol=tol, xtol=tol, gtol=tol,
                          tr_solver="exact" if len(x0) == 1 else solver)
 
 
@@ -121,7 +124,8 @@ def search(residuals: Residuals, cost: Callable[[np.ndarray, float], float], sca
     ranked = glob.population[np.argsort(glob.population_energies)]
     members = distinct([glob.x, x_typical, *ranked], MEMBER_STARTS + 1)
     spread = qmc.Sobol(k, scramble=True, seed=rng).random(SOBOL_STARTS)
-    runs = [local_run(residuals, x0, loss, scale, "lsmr", SEARCH_NFEV_PER_PARAM * k) for x0 in (*members, *spread)]
+    runs = [local_run(residuals, x0, loss, scale, "lsmr", SEARCH_NFEV_PER_PARAM * k, SEARCH_TOL)
+            for x0 in (*members, *spread)]
     costs = np.array([cost(r.fun, scale) for r in runs])
     order = np.argsort(costs, kind="stable")
     return SearchResult(optima=distinct([runs[i].x for i in order], keep, costs[order]), n_runs=len(runs),
