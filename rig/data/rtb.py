@@ -70,7 +70,7 @@ def _value(document: Mapping[str, Any], key: str, unit: str) -> str:
     value, u = document.get(key), document.get(f"u_{key}")
     if value is None:
         return "undefined"
-    return f"{value:.4g} ± {u:.2g} {unit}" if u is not None else f"{value:.4g} (u undefined) {unit}"
+    return f"{value:.4g} ± {u:.2g} {unit}" if u is not None else f"{value:.4g} {unit} (u undefined)"
 
 
 def _classes(cls: str | None, within: Sequence[str]) -> str:

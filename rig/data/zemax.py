@@ -32,12 +32,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from rig import __version__
-from rig.analysis.prediction import Prediction, Predictor
 from rig.data.output_folder import new_file
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import sph_to_vec
@@ -67,21 +67,44 @@ class ZemaxGrid:
     specular_width_deg: float
 
 
+class Values(Protocol):
+    """What the table needs of a prediction (rig.analysis.prediction.Prediction has it)."""
+
+    @property
+    def brdf_per_sr(self) -> np.ndarray: ...
+
+    @property
+    def extrapolated(self) -> np.ndarray: ...
+
+
+class Predictor(Protocol):
+    """The part of rig.analysis.prediction.Predictor used here (rig.data sits below rig.analysis)."""
+
+    def predict(self, theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike,
+                phi_o_deg: ArrayLike) -> Values: ...
+
+
+@dataclass(frozen=True)
+class FormulaValues:
+    brdf_per_sr: np.ndarray
+    extrapolated: np.ndarray
+
+
 class FormulaPredictor:
-    """A fitted model's values only: the table needs no uncertainty, and the covariance's gradients would cost
-    five times the evaluations. Everything is flagged as beyond the measured domain (no dataset is consulted)."""
+    """A fitted model's values only: the table needs no uncertainty (rig.analysis.predict.ModelPredictor's
+    covariance gradients would cost five times the evaluations) and no dataset. Everything is flagged as beyond
+    the measured domain: no measurement is consulted."""
 
     def __init__(self, model: str, params: dict[str, float]):
         self.model, self.params = get_model(model), dict(params)
-        self.method = f"model {model} (the fitted formula)"
 
     def predict(self, theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike,
-                phi_o_deg: ArrayLike) -> Prediction:
+                phi_o_deg: ArrayLike) -> FormulaValues:
         ti, pi_, to, po = np.broadcast_arrays(*(np.radians(np.asarray(a, float))
                                                 for a in (theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg)))
         with np.errstate(all="ignore"):
             f = self.model(sph_to_vec(ti, pi_), sph_to_vec(to, po), self.params)
-        return Prediction(f, np.zeros(f.shape), np.ones(f.shape, bool))
+        return FormulaValues(f, np.ones(f.shape, bool))
 
 
 def _in_plane(predictor: Predictor, theta_i: float, x_deg: np.ndarray) -> np.ndarray:
