@@ -20,10 +20,10 @@ both halves of the plane-symmetric hemisphere), so that a reader's integral of t
 Grids: a reader interpolates between incidence rows at fixed scatter angles, so a lobe that moves in them must
 move less than a fraction of its width between rows. The specular lobe stays at radial 0°; the retroreflective
 one sits at radial 2θi and moves twice as fast as θi. The grids therefore follow the lobes' widths, measured on
-the source in the plane of incidence (full width at half maximum over the lobe's own base): incidence step =
-retro width / 4 (0.5° to 5°), radial step = specular width / 4 up to 10° (0.1° to 0.5°) and retro width / 4
-beyond (0.25° to 1°); azimuths every 1° within 10° of the plane of incidence, where both lobes lie, every 2°
-elsewhere.
+the source in the plane of incidence (full width at half maximum of a peak inside a ±15° window; a value rising
+to the horizon is no lobe): incidence step = retro width / 7 (0.5° to 5°), radial step = specular width / 4 up
+to 10° (0.1° to 0.5°) and retro width / 4 beyond (0.25° to 1°); azimuths every 1° within 10° of the plane of
+incidence, where both lobes lie, every 2° elsewhere. Steps are rounded down to plain numbers.
 """
 
 from __future__ import annotations
@@ -114,16 +114,16 @@ def _in_plane(predictor: Predictor, theta_i: float, x_deg: np.ndarray) -> np.nda
 
 
 def lobe_width_deg(predictor: Predictor, theta_i: float, centre_deg: float) -> float:
-    """Full width at half maximum (degrees) of the peak nearest `centre_deg` in the plane of incidence, over the
-    minimum of a ±15° window; inf when there is no peak to speak of."""
+    """Full width at half maximum (degrees) of the highest peak within ±15° of `centre_deg` in the plane of
+    incidence, over the window's minimum; inf when there is no peak inside the window."""
     x = np.arange(centre_deg - WIDTH_WINDOW_DEG, centre_deg + WIDTH_WINDOW_DEG + 1e-9, 0.05)
     x = x[np.abs(x) < 89.5]
     with np.errstate(all="ignore"):
         f = np.nan_to_num(_in_plane(predictor, theta_i, x), nan=0.0, posinf=0.0, neginf=0.0)
     peak = int(np.argmax(f))
     base, top = float(f.min()), float(f[peak])
-    if top <= 0.0 or top - base < MIN_LOBE_CONTRAST * top:
-        return math.inf
+    if top <= 0.0 or top - base < MIN_LOBE_CONTRAST * top or peak in (0, len(x) - 1):
+        return math.inf                         # flat, or rising toward the window's edge (the horizon): no lobe
     above = f >= base + 0.5 * (top - base)
     lo, hi = peak, peak
     while lo > 0 and above[lo - 1]:
@@ -133,6 +133,9 @@ def lobe_width_deg(predictor: Predictor, theta_i: float, centre_deg: float) -> f
     return float(x[hi] - x[lo]) + 0.05
 
 
+#: Incidence rows per retroreflective width: the peak, read halfway between two rows, sits one row step from
+#: either row's peak, which for a Gaussian-like lobe reads it 1 − exp(−4 ln 2 / 7²) ≈ 5.5 % low.
+ROWS_PER_RETRO_WIDTH = 7.0
 #: Steps are rounded down to one of these (degrees), so that the lists read as plain numbers.
 NICE_STEPS = (0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0)
 
@@ -152,7 +155,7 @@ def grid_for(predictor: Predictor, theta_max_deg: float) -> ZemaxGrid:
     specular = min(lobe_width_deg(predictor, t, -t) for t in probes)
     fine = _steps(0.0, FINE_RADIAL_MAX_DEG, specular / 4, FINE_RADIAL_STEP)
     coarse = _steps(FINE_RADIAL_MAX_DEG, 180.0, retro / 4, COARSE_RADIAL_STEP)
-    return ZemaxGrid(incidence_deg=_steps(0.0, theta_max_deg, retro / 4, INCIDENCE_STEP),
+    return ZemaxGrid(incidence_deg=_steps(0.0, theta_max_deg, retro / ROWS_PER_RETRO_WIDTH, INCIDENCE_STEP),
                      azimuth_deg=AZIMUTH_DEG, radial_deg=np.concatenate([fine, coarse[1:]]),
                      retro_width_deg=retro, specular_width_deg=specular)
 

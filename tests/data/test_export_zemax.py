@@ -199,3 +199,16 @@ def test_from_the_data_of_a_simulated_campaign(e2e_run, tmp_path):
     wi = np.concatenate([np.sin(t), np.zeros_like(t), np.cos(t)], axis=-1)
     f = get_model(truth["model"])(wi, wo, truth["params"])
     assert np.median(np.abs(sample(table, theta_i, wo) / f - 1)) < 0.12
+
+
+def test_grid_follows_the_lobes():
+    """No lobe (Lambert): the coarsest grid; a narrow retroreflective lobe: rows and radial steps at their finest."""
+    from rig.data.zemax import FormulaPredictor, grid_for
+
+    flat = grid_for(FormulaPredictor("lambert", {"kd": 0.5}), 85.0)
+    assert math.isinf(flat.retro_width_deg) and math.isinf(flat.specular_width_deg)
+    assert set(np.diff(flat.incidence_deg)) == {5.0} and np.diff(flat.radial_deg).max() == 1.0
+    narrow = grid_for(FormulaPredictor("mrm", {"roughness": 0.1, "f0": 0.5}), 85.0)
+    assert narrow.retro_width_deg < 2.0 and math.isinf(narrow.specular_width_deg)      # MRM: no mirror lobe
+    assert np.diff(narrow.incidence_deg).max() == 0.5 and np.diff(narrow.radial_deg[narrow.radial_deg > 10]).max() \
+        == 0.25
