@@ -1,7 +1,7 @@
 """Benchmark: is `rig predict`'s uncertainty calibrated on samples nobody tuned it for? (issue 31)
 
 Draws samples from five families with parameters drawn per seed over the ranges of the published fits
-(docs/predict.md; ../shared seeds: Spieringhs et al. 2023 Table 7 RetroPhong, the MRM tape fit, glossy paints,
+(docs/predict.md; the seed papers: Spieringhs et al. 2023 Table 7 RetroPhong, the MRM tape fit, glossy paints,
 Oren–Nayar and Lambertian diffusers), measures each with the paper campaign's table
 (campaigns/spieringhs2023-rm1.yaml) on the simulated rig, and compares the interpolant at random directions (θi ≤
 88°, θo ≤ 85°) with the closed-form truth (the interpolant `rig predict` uses, rig.analysis.held_out): k = 2
