@@ -249,11 +249,11 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
         return _cost(r, loss, scale)
 
     found = search(lambda x: residuals(x, sub), cost, scale_on(sub), x_typ, rng, loss, starts, f[sub] / sigma[sub])
-    best = found.optima[0]
-    if subsampled:        # the subsample ranks the basins; each is refined on all points, the best kept
-        scale = scale_on(slice(None))(best)
-        runs = [local_run(residuals, x0, loss, scale, "lsmr") for x0 in found.optima]
-        best = runs[int(np.argmin([cost(r.fun, scale) for r in runs]))].x
+    # The search ranks the basins (on a subsample, to its loose tolerance); each close one is refined on
+    # all points to scipy's tolerances, and the best kept
+    scale = scale_on(slice(None))(found.optima[0])
+    runs = [local_run(residuals, x0, loss, scale, "lsmr") for x0 in found.optima]
+    best = runs[int(np.argmin([cost(r.fun, scale) for r in runs]))].x
     scale = scale_on(slice(None))(best)        # the M-estimator's scale, re-estimated at the solution
     final = local_run(residuals, best, loss, scale, "exact")
     x = final.x
