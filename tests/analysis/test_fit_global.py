@@ -3,7 +3,7 @@
 A stiff case: Blinn-Retro fitted to a steep retroreflector (RetroPhong with the RM3 fit of Spieringhs
 2023 Table 7, n = 68) seen at six rings of views around the incidence and the mirror direction. The
 population-then-local fit this replaced ended on the plateau where the forward lobe vanishes
-(α_r at its bound 1e5, RMSE 0.655); the best of random starts is 4 % lower.
+(α_r at its bound 1e5, RMSE 0.655); the best of random starts is 3 % lower (0.636).
 """
 
 import numpy as np
@@ -49,8 +49,6 @@ def test_stiff_fit_reaches_the_best_of_random_starts_not_the_plateau():
     assert r.metrics["rmse"] <= best * (1 + 1e-3), (r.metrics["rmse"], best, r.params)
     assert r.metrics["rmse"] < 0.645                         # the plateau α_r = 1e5 left: RMSE 0.655
     assert r.n_starts >= 16 and r.n_starts_at_best >= 1
-    again = fit("blinn_retro", wi, wo, f, weighting="none")   # seeded: the same fit twice
-    assert again.params == pytest.approx(r.params, rel=1e-12, abs=0)
 
 
 def test_a_parameter_on_its_bound_is_flagged_and_not_called_converged():
