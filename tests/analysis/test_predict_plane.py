@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from test_predict import dataset, smooth_brdf
 
-from rig.analysis.incidence_views import mirrored_views
+from rig.analysis.incidence_views import containing_triangle, mirrored_views
 from rig.analysis.predict import InterpolatingPredictor, measured_domain
 from rig.physics.geometry import sph_to_vec
 
@@ -64,3 +64,13 @@ def test_mirrored_views_double_the_views_off_the_plane_only():
     assert views[4] == pytest.approx([0.5, -0.2]) and views[5] == pytest.approx([-0.4, -0.6])
     assert np.array_equal(mirror[mirror], np.arange(6))
     assert list(mirror[[0, 3]]) == [0, 3]
+
+
+def test_the_containing_triangle_and_its_weights_reproduce_the_point():
+    corners = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
+    k, w = containing_triangle(corners, np.array([0.8, 0.6]))
+    assert k == 1 and w.sum() == pytest.approx(1.0) and w @ corners[1] == pytest.approx([0.8, 0.6])
+    k, w = containing_triangle(corners, np.array([0.2, 0.3]))
+    assert k == 0 and w == pytest.approx([0.5, 0.2, 0.3])
+    assert containing_triangle(corners, np.array([1.2, 0.5])) is None
+    assert containing_triangle(np.array([[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]]), np.array([1.0, 1.0])) is None
