@@ -48,9 +48,11 @@ def simulated(tmp_path_factory, request):
     return out
 
 
-def views_around_lobes(offsets_deg, incidences=((0, 0), (40, 0), (60, 0), (70, 0), (80, 0), (85, 0), (80, 30))):
-    """(wi, wo) pairs: rings of views at `offsets_deg` around the incidence and the mirror direction."""
-    th, ph = np.meshgrid(np.radians(offsets_deg), np.radians(np.arange(0, 360, 60)), indexing="ij")
+def views_around_lobes(offsets_deg, incidences=((0, 0), (40, 0), (60, 0), (70, 0), (80, 0), (85, 0), (80, 30)),
+                       azimuths_deg=tuple(range(0, 360, 60))):
+    """(wi, wo) pairs: rings of views at `offsets_deg` (and `azimuths_deg` about each centre) around the incidence and
+    the mirror direction."""
+    th, ph = np.meshgrid(np.radians(offsets_deg), np.radians(azimuths_deg), indexing="ij")
     wis, wos = [], []
     for theta_i, phi_i in incidences:
         wi = geo.sph_to_vec(np.radians(theta_i), np.radians(phi_i))

@@ -9,10 +9,10 @@ population-then-local fit this replaced ended on the plateau where the forward l
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from test_fit import views_around_lobes
 
 from rig.analysis.fit import ParamSpace, fit
 from rig.cli.fit import format_comparison, format_report
-from rig.physics import geometry as geo
 from rig.physics.brdf_models import MODELS
 
 RM3 = {"kd": 0.701, "n": 68.0, "k1": 0.184, "k2": 1.53e-12, "k3": 0.00570, "k4": 3.40}
@@ -20,16 +20,7 @@ RM3 = {"kd": 0.701, "n": 68.0, "k1": 0.184, "k2": 1.53e-12, "k3": 0.00570, "k4":
 
 def views(offsets_deg, incidences=(0, 40, 70, 85)):
     """Rings of four views at `offsets_deg` around the incidence and the mirror direction, φi = 0."""
-    th, ph = np.meshgrid(np.radians(offsets_deg), np.radians([0, 90, 180, 270]), indexing="ij")
-    wis, wos = [], []
-    for theta_i in incidences:
-        wi = geo.sph_to_vec(np.radians(theta_i), 0.0)
-        for centre in (wi, geo.mirror_direction(wi)):
-            wo = geo.centre_pattern(th.ravel(), ph.ravel(), centre)
-            wo = wo[wo[:, 2] > np.cos(np.radians(88))]
-            wis.append(np.broadcast_to(wi, wo.shape))
-            wos.append(wo)
-    return np.concatenate(wis), np.concatenate(wos)
+    return views_around_lobes(offsets_deg, tuple((t, 0) for t in incidences), azimuths_deg=(0, 90, 180, 270))
 
 
 def best_of_random_starts(name, wi, wo, f, n, seed=1):
