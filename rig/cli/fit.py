@@ -142,7 +142,8 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
                            help="minimise the plain squared error (the paper's RMSE), "
                                 "even where u_brdf_per_sr is given")
     p.add_argument("--loss", choices=LOSSES, default="linear", help="robust loss against outliers (default linear)")
-    p.add_argument("--starts", type=int, default=4, help="local runs after the global stage (default 4)")
+    p.add_argument("--starts", type=int, default=4,
+                   help="the best distinct optima of the global stage that are refined on all points (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the global stage (default 0)")
     p.add_argument("--fix", type=_fixed_value, action="append", default=[], metavar="NAME=VALUE",
                    help="hold a parameter at a value (repeatable)")
