@@ -29,7 +29,7 @@ the model's misfit to the data, `discrepancy_rel` (the RMS relative residual lef
 own u is taken out); and the budget components every point shares (camera and meter calibration), which
 a fit that treats the points as independent leaves out of its covariance; and, beyond the measured domain,
 a model-form term: the model against the data's own extrapolation (the interpolant's, which holds the nearest
-measured values), |ln f_model − ln f_data|. Only a model can say anything beyond the measured domain (road
+measured values), |f_model − f_data|. Only a model can say anything beyond the measured domain (road
 quantities at 88.76°, grazing views), but there nothing measured confirms its shape: two reconstructions that
 agree where they were measured and part beyond it say how much is not known. Such values are flagged.
 """
@@ -293,7 +293,7 @@ class ModelPredictor:
         log_f_data, _, extrapolated = self.domain.evaluate(ti.ravel(), disk_coordinates(to, po, pi_).reshape(-1, 2))
         extrapolated = extrapolated.reshape(f.shape)
         with np.errstate(all="ignore"):
-            form = np.where(extrapolated, f * np.abs(np.log(f) - log_f_data.reshape(f.shape)), 0.0)
+            form = np.where(extrapolated, np.abs(f - np.exp(log_f_data.reshape(f.shape))), 0.0)
         return Prediction(f, np.hypot(u, np.where(np.isfinite(form), form, np.inf)), extrapolated)
 
 
