@@ -61,7 +61,9 @@ def cmd_sampling(args: argparse.Namespace) -> int:
     (out / "sampling.json").write_text(json.dumps({"machine": machine(), "campaign": str(path), "seed": args.seed,
                                                    "results": [asdict(r) for r in results], "verdicts": verdicts},
                                                   indent=2))
-    print("\n".join(["", sampling_bench.format_results(results), *verdicts, f"plot and figures in {out}"]))
+    if len(args.samples) > 1:                   # one sample's table was printed as it finished
+        print("\n".join(["", sampling_bench.format_results(results), *verdicts]))
+    print(f"plot and figures in {out}")
     return EXIT_OK
 
 
@@ -70,11 +72,14 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
     bench = subparsers.add_parser("bench", help="benchmarks on the simulated rig")
     which = bench.add_subparsers(dest="bench", required=True)
     evt = which.add_parser("error-vs-time", help="BRDF error against rig time for several capture settings")
-    evt.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN))
+    evt.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN),
+                     help=f"campaign YAML whose captures are compared (default {DEFAULT_CAMPAIGN.name})")
     evt.add_argument("--out", default="runs/bench-error-vs-time", help="folder for the PNG and JSON")
     evt.set_defaults(func=cmd_error_vs_time)
     smp = which.add_parser("sampling", help="validation error of the dataset against rig time, per sampling strategy")
-    smp.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN))
+    smp.add_argument("campaign", nargs="?", default=str(DEFAULT_CAMPAIGN),
+                     help=f"campaign YAML: the baseline table and the adaptive runs' candidates (default "
+                          f"{DEFAULT_CAMPAIGN.name})")
     smp.add_argument("--samples", nargs="+", default=list(sampling_bench.SAMPLES), metavar="SAMPLE",
                      help=f"simulated samples (default all: {', '.join(sampling_bench.SAMPLES)})")
     smp.add_argument("--budgets", nargs="+", type=float, default=list(sampling_bench.BUDGET_FRACTIONS),

@@ -1,4 +1,6 @@
-"""Command line: `rig run`, `rig plan`, `rig devices`."""
+"""rig: control and acquisition for image-based BRDF goniophotometers (a simulated rig built in). Measure with
+`rig run`, check with `rig plan` and `rig devices`, watch with `rig monitor`, and turn the dataset into fits,
+predictions, exports, plots and a report; `rig COMMAND --help` for each."""
 
 from __future__ import annotations
 

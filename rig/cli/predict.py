@@ -89,7 +89,8 @@ def cmd_predict(args: argparse.Namespace) -> int:
     try:
         ds = load(Path(args.dataset))
         directions = read_directions(Path(args.at))
-        predictor = predictor_for(ds, args.method, args.fit, args.model)
+        method = args.method or ("model" if args.fit or args.model else "interpolate")
+        predictor = predictor_for(ds, method, args.fit, args.model)
         p = predictor.predict(*directions.T)
     except (DatasetError, DirectionsError, ValueError, KeyError) as exc:
         return fail(str(exc))
@@ -113,10 +114,11 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
     p.add_argument("--at", required=True, metavar="DIRECTIONS.csv",
                    help="CSV with a header naming theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg (degrees, SCS)")
     p.add_argument("--out", required=True, metavar="PRED.csv", help="output CSV; never overwritten")
-    p.add_argument("--method", choices=("interpolate", "model"), default="interpolate",
-                   help="interpolate (default): the measurements, no model assumed, flagged beyond them; "
-                        "model: a fitted model (--fit FIT.json from `rig fit --json`, or --model NAME to fit now), "
-                        "the only one that says anything beyond the measured domain")
+    p.add_argument("--method", choices=("interpolate", "model"), default=None,
+                   help="interpolate (the default without --fit or --model): the measurements, no model assumed, "
+                        "flagged beyond them; model (implied by --fit or --model): a fitted model (--fit FIT.json "
+                        "from `rig fit --json`, or --model NAME to fit now), the only one that says anything beyond "
+                        "the measured domain")
     p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit DATASET --model NAME --json`")
     p.add_argument("--model", help="fit this model to the dataset now (see `rig fit --help` for the models)")
     p.set_defaults(func=cmd_predict)

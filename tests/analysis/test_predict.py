@@ -175,6 +175,17 @@ def test_the_model_method_needs_a_fit_or_a_model(tmp_path, capsys):
     assert "--fit FIT.json" in capsys.readouterr().err
 
 
+def test_a_model_or_a_fit_implies_the_model_method_and_interpolate_refuses_them(tmp_path, capsys):
+    ds = lambert_dataset(tmp_path)
+    at = tmp_path / "at.csv"
+    at.write_text("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n30,0,35,100\n", encoding="utf-8")
+    assert main(["predict", str(ds), "--at", str(at), "--out", str(tmp_path / "m.csv"), "--model", "lambert"]) == 0
+    assert "model lambert" in capsys.readouterr().err
+    assert main(["predict", str(ds), "--at", str(at), "--out", str(tmp_path / "i.csv"), "--method", "interpolate",
+                 "--model", "lambert"]) == 2
+    assert "go with --method model" in capsys.readouterr().err
+
+
 def test_model_predictor_from_a_dataset_fits_when_asked():
     ds = dataset(value=lambda ti, pi_, to, po: np.full(ti.shape, 0.6 / np.pi), u_rel=0.01)
     pred = model_predictor(ds, model="lambert")
