@@ -167,18 +167,21 @@ def test_bad_directions_are_refused_naming_file_and_line(tmp_path, capsys, text,
     assert message in err and str(at) in err and not (tmp_path / "p.csv").exists()
 
 
-def test_the_model_method_needs_a_fit_or_a_model(tmp_path, capsys):
-    ds = lambert_dataset(tmp_path)
+def one_direction(tmp_path: Path) -> Path:
+    """A DIRECTIONS.csv of one direction."""
     at = tmp_path / "at.csv"
     at.write_text("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n30,0,35,100\n", encoding="utf-8")
+    return at
+
+
+def test_the_model_method_needs_a_fit_or_a_model(tmp_path, capsys):
+    ds, at = lambert_dataset(tmp_path), one_direction(tmp_path)
     assert main(["predict", str(ds), "--at", str(at), "--out", str(tmp_path / "p.csv"), "--method", "model"]) == 2
     assert "--fit FIT.json" in capsys.readouterr().err
 
 
 def test_a_model_or_a_fit_implies_the_model_method_and_interpolate_refuses_them(tmp_path, capsys):
-    ds = lambert_dataset(tmp_path)
-    at = tmp_path / "at.csv"
-    at.write_text("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n30,0,35,100\n", encoding="utf-8")
+    ds, at = lambert_dataset(tmp_path), one_direction(tmp_path)
     assert main(["predict", str(ds), "--at", str(at), "--out", str(tmp_path / "m.csv"), "--model", "lambert"]) == 0
     assert "model lambert" in capsys.readouterr().err
     assert main(["predict", str(ds), "--at", str(at), "--out", str(tmp_path / "i.csv"), "--method", "interpolate",
