@@ -96,6 +96,11 @@ class LineSplitter:
         return lines
 
 
+#: The longest a peer's stop waits for its serving thread (s). The thread is a daemon: one blocked in a reply to a
+#: client that stopped reading (a pty's buffer full, a TCP window shut) must not keep `rig sim serve` from exiting
+#: on SIGTERM.
+STOP_JOIN_S = 5.0
+
 class _TcpServer:
     """One thread serves the listener and every connection (clients may reconnect at will).
 
@@ -115,7 +120,7 @@ class _TcpServer:
 
     def stop(self) -> None:
         self._wake[1].send(b"x")
-        self._thread.join()
+        self._thread.join(STOP_JOIN_S)      # bounded: a reply blocked on a client that stopped reading (daemon)
         for sock in (self._listener, *self._wake):
             sock.close()
 
@@ -200,7 +205,7 @@ class _PtyServer:
 
     def stop(self) -> None:
         os.write(self._wake_w, b"x")
-        self._thread.join()
+        self._thread.join(STOP_JOIN_S)      # bounded: a reply blocked on a full pty buffer nobody reads (daemon)
         for fd in (self._master, self._slave, self._wake_r, self._wake_w):
             os.close(fd)
 
