@@ -23,9 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig.analysis.fit import fit  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.data.importer import import_alta  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 
 CEA = ROOT / "tests" / "data" / "cea-retro"          # vendored ALTA project data (MPL-2.0, see PROVENANCE.md)
 #: Belcour 2014 Table 1, back-vector parametrisation (our model names in brackets).

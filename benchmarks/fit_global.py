@@ -32,11 +32,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig.analysis.fit import NONFINITE_RESIDUAL, ParamSpace, choose_weighting, fit_dataset  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
 from rig.data.importer import import_alta  # noqa: E402
 from rig.physics.brdf_models import MODELS  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 
 CAMPAIGNS = {**{rm: ROOT / "campaigns" / f"spieringhs2023-{rm}.yaml" for rm in ("rm1", "rm2", "rm3")},
              "steep": ROOT / "benchmarks" / "fit_steep.yaml"}

@@ -36,11 +36,11 @@ sys.path.insert(0, str(ROOT))
 
 from rig.analysis.fit import FitResult, fit_dataset  # noqa: E402
 from rig.analysis.fit_search import DE_MAXITER, DE_POPSIZE, SEARCH_POINTS, SOBOL_STARTS  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.cli.fit import format_comparison  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
 from rig.physics.brdf_models import MODELS  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 
 RMS = ("rm1", "rm2", "rm3")
 #: Spieringhs et al. 2023 Table 7 (RetroPhong) and the paper's own goodness of fit (Table 3).

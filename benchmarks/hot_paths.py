@@ -25,12 +25,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig.bench.error_vs_time import best_of, machine  # noqa: E402
 from rig.config.rigfile import RigConfig, camera_optics  # noqa: E402
 from rig.core.values import Window  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import forward_deg, inverse_deg  # noqa: E402
 from rig.physics.optics import roi_inside_spot  # noqa: E402
-from rig.session.bench import best_of, machine  # noqa: E402
 from rig.simulators.camera import SimCamera  # noqa: E402
 from rig.simulators.world import SimWorld  # noqa: E402
 

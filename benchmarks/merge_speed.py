@@ -39,12 +39,12 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig.bench.error_vs_time import best_of, machine  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.core.bands import workers  # noqa: E402
 from rig.physics import hdr  # noqa: E402
 from rig.physics.hdr import merge_exposures, merge_exposures_reference  # noqa: E402
-from rig.session.bench import best_of, machine  # noqa: E402
 from rig.simulators.camera import SimCamera, lit_view  # noqa: E402
 from rig.simulators.sensor import SensorModel  # noqa: E402
 from rig.simulators.texture import GlintTexture  # noqa: E402
@@ -132,7 +132,7 @@ SPLIT = ((SimCamera, "_render_scene", "simulated scene (rays, BRDF, texture)"),
          ("rig.acquisition.attenuation", "reduce_point", "reduction (merge, ROI, flat field)"),
          ("rig.acquisition.capture", "merge_exposures", "  of which the merge"),
          ("rig.acquisition.capture", "merged_rate", "  of which the merge"),
-         ("rig.data.dataset", "write_luminance_exr", "EXR files written"))
+         ("rig.data.dataset_writer", "write_luminance_exr", "EXR files written"))
 
 
 @contextmanager

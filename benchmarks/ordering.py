@@ -28,6 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.cli.main import NOMINAL_CAPTURE_S  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig, load_rig_config  # noqa: E402
@@ -35,7 +36,6 @@ from rig.planning.collisions import zones_of  # noqa: E402
 from rig.planning.ordering import START_DEG, arm_branches, choose_branches, order_plan  # noqa: E402
 from rig.planning.plan import build_plan, estimate_rig_time_s  # noqa: E402
 from rig.planning.points import Plan  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 
 
 def timed_plans(campaign, rig, repeat: int) -> dict:

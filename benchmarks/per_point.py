@@ -45,14 +45,14 @@ from rig.acquisition.capture import DarkFrameCache  # noqa: E402
 from rig.acquisition.engine import Runner  # noqa: E402
 from rig.acquisition.execute import manifest_for  # noqa: E402
 from rig.acquisition.moves import Mover  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import Campaign, load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
-from rig.data.dataset import DatasetWriter  # noqa: E402
+from rig.data.dataset_writer import DatasetWriter  # noqa: E402
 from rig.drivers.modbus_drive import ModbusDriveLink  # noqa: E402
 from rig.drivers.transport import LineTransport  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.planning.points import Plan  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 from rig.simulators.rig import SimulatedRig  # noqa: E402
 
 PAPER = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"

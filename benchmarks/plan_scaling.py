@@ -27,11 +27,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import Campaign, parse_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.planning.ordering import BLOCK_NODES  # noqa: E402
 from rig.planning.plan import build_plan, estimate_rig_time_s  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 
 #: Largest N's CPU time per point over the smallest's that still counts as linear.
 TARGET_RATIO = 2.0

@@ -23,13 +23,13 @@ sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.execute import execute  # noqa: E402
 from rig.analysis.predict import InterpolatingPredictor, measured_domain, model_predictor  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import sph_to_vec  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 

@@ -29,13 +29,13 @@ sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.execute import execute  # noqa: E402
 from rig.analysis.fit import fit_dataset  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
 from rig.data.radiance import PERCENT_CULL, RESOLUTION_LOG2, evaluate_xml, export_radiance_xml  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
-from rig.session.bench import machine  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 MAX_THETA_I_DEG = 85.0 + 0.5      # the paper's last incidence, achieved angles scatter by ~0.01°

@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.session.bench import machine  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
 
 CAMPAIGNS = [ROOT / "campaigns" / "quick.yaml", ROOT / "campaigns" / "spieringhs2023-rm1.yaml"]
 

@@ -15,8 +15,8 @@ from pydantic import BaseModel
 
 from repo_paths import ROOT
 from rig.config import campaign as campaign_module
-from rig.data.dataset import DatasetWriter
 from rig.data.dataset_format import BRDF_COLUMNS, CONVENTIONS, SKIPPED_COLUMNS, UNITS
+from rig.data.dataset_writer import DatasetWriter
 from rig.planning.points import SKIP_REASONS
 
 DOCS = ROOT / "docs"

@@ -44,7 +44,7 @@ from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading, PointCapture, Progress, ProgressCallback
-from rig.data.dataset import DatasetWriter, utc_now
+from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
 from rig.physics import geometry as geo

@@ -19,8 +19,8 @@ from rig.acquisition.stopping import AbortRequested
 from rig.config.campaign import Campaign, campaign_sha256
 from rig.config.rigfile import RigConfig
 from rig.core.values import ProgressCallback
-from rig.data.dataset import DatasetWriter
 from rig.data.dataset_format import DatasetError
+from rig.data.dataset_writer import DatasetWriter
 from rig.drivers.interfaces import RigDevices
 from rig.planning.points import Plan, PointSource
 

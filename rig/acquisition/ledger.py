@@ -10,7 +10,7 @@ from collections.abc import Callable, Sequence
 
 from rig.acquisition.eta import Eta
 from rig.acquisition.rows import Measurement, RowConstants, bracketed_rows, latest_row
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 from rig.physics.illuminance import IlluminanceEstimate
 from rig.planning.points import PlannedPoint
 

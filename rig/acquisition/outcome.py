@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from rig.acquisition.stopping import AbortRequested, StopRequested
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 
 Status = Literal["complete", "interrupted", "failed"]
 

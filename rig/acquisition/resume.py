@@ -31,9 +31,9 @@ from rig.acquisition.rig_change import LINK_KEYS, instrument_difference, link_ch
 from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
 from rig.config.rigfile import RigConfig, load_rig_config
 from rig.core.jsonfile import JsonFileError, parse_json
-from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.dataset_format import BRDF_COLUMNS
 from rig.data.dataset_reader import complete_lines, numeric_columns, read_brdf_table
+from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.output_folder import folder_size
 from rig.devices import check_devices
 from rig.planning.candidates import candidate_plan, logged_points

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from rig.acquisition.outcome import RunEnding
-from rig.data.dataset import utc_now
+from rig.data.dataset_writer import utc_now
 from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
 from rig.planning.points import Plan
 

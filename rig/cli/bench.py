@@ -1,4 +1,4 @@
-"""`rig bench`: the command line of rig.session.bench."""
+"""`rig bench`: the command line of rig.bench.error_vs_time."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from dataclasses import asdict
 from pathlib import Path
 
 import rig
+from rig.bench import sampling as sampling_bench
+from rig.bench.error_vs_time import SETTINGS, format_table, machine, plot, run_settings
 from rig.config.campaign import load_campaign
 from rig.config.files import ConfigFileError
 from rig.core.exits import EXIT_OK, fail
-from rig.session import sampling_bench
-from rig.session.bench import SETTINGS, format_table, machine, plot, run_settings
 
 #: The paper's road marking RM1, in the campaigns/ folder beside the rig package (the checkout).
 DEFAULT_CAMPAIGN = Path(rig.__file__).resolve().parents[1] / "campaigns" / "spieringhs2023-rm1.yaml"

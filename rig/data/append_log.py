@@ -1,6 +1,6 @@
 """Append-only, line-oriented files whose every line reaches the disk in order (brdf.csv, events.jsonl).
 
-The dataset writer (rig.data.dataset) appends through these; a failed append is undone, so a file never ends
+The dataset writer (rig.data.dataset_writer) appends through these; a failed append is undone, so a file never ends
 in half a line that later lines would be glued to.
 """
 

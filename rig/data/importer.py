@@ -28,8 +28,8 @@ import numpy as np
 
 from rig import __version__
 from rig.data.alta import CONVERSION_SKIP_REASONS, AltaData, RigPoints, read_alta, to_rig
-from rig.data.dataset import DatasetWriter, utc_now
 from rig.data.dataset_format import BRDF_COLUMNS
+from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.output_folder import removed_on_failure, require_new_output
 from rig.planning.points import SkippedPoint
 

@@ -26,9 +26,9 @@ from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.data import append_log
-from rig.data import dataset as ds_module
-from rig.data.dataset import DatasetWriter, DiskFullError
+from rig.data import dataset_writer as ds_module
 from rig.data.dataset_reader import load
+from rig.data.dataset_writer import DatasetWriter, DiskFullError
 from rig.data.images import write_luminance_exr
 from rig.planning.plan import build_plan
 from rig_process import pending_points, start_rig, wait_until

@@ -12,7 +12,7 @@ from rig.acquisition.progress import ProgressBar
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.values import Progress
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 from rig.planning.plan import build_plan
 from rig.simulators.rig import SimulatedRig
 

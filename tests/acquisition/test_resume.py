@@ -143,7 +143,7 @@ def test_resume_of_a_folder_without_dataset(tmp_path):
 def _unfinished(tmp_path: Path, rig: RigConfig) -> Path:
     """An interrupted dataset of CAMPAIGN on `rig`, before its first point (what `rig run` writes first)."""
     from rig.acquisition.execute import manifest_for
-    from rig.data.dataset import DatasetWriter
+    from rig.data.dataset_writer import DatasetWriter
 
     campaign = load_campaign(CAMPAIGN)
     out = tmp_path / "ds"
@@ -231,7 +231,7 @@ def test_a_resume_whose_rig_cannot_be_reached_counts_the_points_it_keeps(tmp_pat
 
     from rig.acquisition.execute import execute
     from rig.core.errors import DeviceError
-    from rig.data.dataset import DatasetWriter
+    from rig.data.dataset_writer import DatasetWriter
 
     rig = simulated_rig()
     campaign = load_campaign(CAMPAIGN)

@@ -19,7 +19,7 @@ from rig.cli.main import main
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 from rig.data.images import read_luminance_exr
 from rig.planning.plan import build_plan
 from rig.simulators.rig import SimulatedRig

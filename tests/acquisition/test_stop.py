@@ -32,7 +32,7 @@ from rig.config.campaign import Campaign, parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
 from rig.core.values import Progress
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 from rig.drivers.interfaces import RigDevices
 from rig.drivers.wallclock import WallClock
 from rig.planning.plan import build_plan

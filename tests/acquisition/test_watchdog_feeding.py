@@ -26,7 +26,7 @@ from rig.config.campaign import CampaignError, check_campaign_for_rig, load_camp
 from rig.config.rigfile import load_rig_config, simulated_rig
 from rig.config.watchdog import hdr_picture_s
 from rig.core.values import Frame, Window
-from rig.data.dataset import DatasetWriter
+from rig.data.dataset_writer import DatasetWriter
 from rig.drivers.interfaces import CalibratedLuminanceCamera, RigDevices
 from rig.planning.plan import build_plan
 from rig.simulators.clock import SimClock

@@ -8,8 +8,8 @@ import threading
 
 import pytest
 
-from rig.data.dataset import DatasetWriter, DiskFullError
 from rig.data.dataset_format import BRDF_COLUMNS, SKIPPED_COLUMNS, DatasetError
+from rig.data.dataset_writer import DatasetWriter, DiskFullError
 from rig.planning.points import SkippedPoint
 
 CONTRACT_COLUMNS = [

@@ -20,8 +20,8 @@ import pytest
 from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import DatasetWriter
 from rig.data.dataset_format import DatasetError
+from rig.data.dataset_writer import DatasetWriter
 from rig.data.folderlock import LOCK_NAME, FolderLock, FolderLockedError
 from rig.planning.plan import build_plan
 from rig_process import events_text, pending_points, start_rig, wait_until

@@ -52,7 +52,7 @@ def row(point_id: str, rig_s: float, theta_o: float = 30.0, phi_o: float = 180.0
 
 
 class Folder:
-    """A dataset folder written the way rig.data.dataset writes one."""
+    """A dataset folder written the way rig.data.dataset_writer writes one."""
 
     def __init__(self, path: Path, **manifest_changes):
         self.path = path

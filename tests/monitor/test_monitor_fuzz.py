@@ -1,7 +1,7 @@
 """A seeded fuzz and soak of `rig monitor` (issue 30, "done when"): random and hostile events.jsonl and brdf.csv
 content, and bounded hostile connections, while the state keeps answering valid JSON.
 
-The content is rig's own lines (tests/monitor/test_folder.py writes them as rig.data.dataset does) mixed with
+The content is rig's own lines (tests/monitor/test_folder.py writes them as rig.data.dataset_writer does) mixed with
 those lines mutated byte by byte, cut, or with a field swapped for a hostile value (NaN, Infinity, 1e999, an
 integer beyond 4300 digits, a list for an id, 128 kB, deep nesting, NUL and invalid UTF-8), and random bytes.
 Every line the fuzzer writes ends with a newline, so each rig line it writes must be followed whatever

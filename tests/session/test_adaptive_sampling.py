@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS
+from rig.bench.sampling import measuring_time_s
 from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import simulated_rig
 from rig.data.dataset_reader import load
 from rig.planning.candidates import candidate_plan
-from rig.session.sampling_bench import measuring_time_s
 from rig_process import start_rig, wait_until
 
 CAMPAIGN = TEST_CAMPAIGNS / "e2e-adaptive.yaml"

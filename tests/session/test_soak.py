@@ -3,10 +3,11 @@ faults, a device outage, an axis alarm and a lamp burn-out with replacement; the
 holds exactly the fault-free run's points, values within uncertainty, nothing lost."""
 
 
+from soak_runs import compare, run_fault_free, run_with_faults
+
 from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
-from rig.session.soak import compare, run_fault_free, run_with_faults
 from rig.simulators.faults import FaultSchedule
 
 

@@ -15,8 +15,8 @@ from rig.acquisition.outcome import RunEnding, ending_of
 from rig.acquisition.resume import prepare_resume
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
-from rig.data.dataset import DatasetWriter
 from rig.data.dataset_reader import load
+from rig.data.dataset_writer import DatasetWriter
 from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 from rig.simulators.faults import FaultInjector, FaultSchedule
