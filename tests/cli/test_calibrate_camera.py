@@ -8,7 +8,7 @@ import yaml
 
 from repo_paths import TEST_CAMPAIGNS
 from rig.acquisition.execute import execute
-from rig.cli.calibrate import measure
+from rig.calibration.radiometric import measure
 from rig.cli.main import main
 from rig.config.camera_calibration import load_camera_calibration
 from rig.config.campaign import load_campaign
