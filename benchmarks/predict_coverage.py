@@ -1,7 +1,7 @@
 """Benchmark: is `rig predict`'s uncertainty calibrated on samples nobody tuned it for? (issue 31)
 
-Draws samples from five families with parameters drawn per seed over the ranges of the published fits
-(docs/predict.md; the seed papers: Spieringhs et al. 2023 Table 7 RetroPhong, the MRM tape fit, glossy paints,
+Draws samples (rig.bench.draws) from five families with parameters drawn per seed over the ranges of the published
+fits (docs/predict.md; the seed papers: Spieringhs et al. 2023 Table 7 RetroPhong, the MRM tape fit, glossy paints,
 Oren–Nayar and Lambertian diffusers), measures each with the paper campaign's table
 (campaigns/spieringhs2023-rm1.yaml) on the simulated rig, and compares the interpolant at random directions (θi ≤
 88°, θo ≤ 85°) with the closed-form truth (the interpolant `rig predict` uses, rig.analysis.held_out): k = 2
@@ -26,6 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.execute import execute  # noqa: E402
 from rig.analysis.held_out import interpolating_predictor  # noqa: E402
+from rig.bench.draws import draw  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import SimulatedBrdf, load_campaign  # noqa: E402
 from rig.config.rigfile import simulated_rig  # noqa: E402
@@ -34,27 +35,6 @@ from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import sph_to_vec  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
-
-
-def log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
-    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
-
-
-def draw(family: str, rng: np.random.Generator) -> dict[str, float]:
-    """Parameters of one sample of the family, over the ranges of the published fits."""
-    if family == "retrophong":       # Spieringhs et al. 2023, Table 7 (RM1–RM3) and around
-        return {"kd": rng.uniform(0.5, 0.75), "n": log_uniform(rng, 15, 70), "k1": rng.uniform(0.05, 0.2),
-                "k2": log_uniform(rng, 1e-4, 0.08), "k3": log_uniform(rng, 1e-5, 6e-3), "k4": rng.uniform(3, 9)}
-    if family == "mrm_diffuse":      # the CEA yellow tape's MRM fit (roughness 0.23, F0 0.19) and around
-        return {"kd": rng.uniform(0.1, 0.5), "roughness": rng.uniform(0.15, 0.4), "f0": rng.uniform(0.1, 0.3)}
-    if family == "modified_phong":   # glossy paints
-        return {"kd": rng.uniform(0.1, 0.5), "ks": rng.uniform(0.1, 0.5), "n": log_uniform(rng, 20, 300)}
-    if family == "oren_nayar":
-        return {"roughness": rng.uniform(0.0, 0.6), "albedo": rng.uniform(0.3, 0.8)}
-    return {"kd": rng.uniform(0.2, 0.9)}
-
-
-FAMILIES = ("retrophong", "mrm_diffuse", "modified_phong", "oren_nayar", "lambert")
 
 
 def directions(n: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -76,13 +56,12 @@ def main() -> None:
     print(f"{'draw':>4s} {'family':15s} {'cov all':>7s} {'inside':>7s} {'extrap':>7s} {'n extr':>6s} "
           f"{'med|rel|':>8s} {'med u':>7s}")
     base, rig = load_campaign(ROOT / "campaigns" / "spieringhs2023-rm1.yaml"), simulated_rig()
-    rng = np.random.default_rng(args.seed)
     per_family: dict[str, list[np.ndarray]] = {}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.draws):
-            family = FAMILIES[k % len(FAMILIES)]
-            params = draw(family, rng)
+            drawn = draw(args.seed, k)
+            family, params = drawn.family, drawn.params
             sample = base.sample.model_copy(update={"simulated_brdf": SimulatedBrdf(model=family, params=params)})
             campaign = base.model_copy(update={"sample": sample})
             out = Path(tmp) / f"draw{k}"
