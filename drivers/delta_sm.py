@@ -45,8 +45,8 @@ from rig.core.errors import DeviceError
 from rig.drivers import delta_sm_commands as scpi
 from rig.drivers.delta_sm_commands import plain
 from rig.drivers.interfaces import LampSupply, OutputLoss
-from rig.drivers.line_instrument import LineInstrument, Query, Setting
-from rig.drivers.retry import DEFAULT_RETRY, EventSink, RetryPolicy
+from rig.drivers.line_instrument import ErrorQueue, LineInstrument, Query, Setting
+from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
 #: Switching off is the safety action: it gets at least this many attempts.
@@ -78,6 +78,10 @@ class DeltaSM(LineInstrument, LampSupply):
     the first sink attached.
     """
 
+    #: Every setting is followed by a read of the error queue; an entry is a refusal of that setting.
+    confirmation = ErrorQueue(scpi.ERROR, scpi.ERROR_QUEUE_SIZE)
+    holds_events = True
+
     def __init__(self, url: str, *, clock: Clock, current_a: float, current_limit_a: float, watchdog_s: float,
                  ramp_s: float, name: str = "lamp", timeout_s: float = 1.0, retry: RetryPolicy = DEFAULT_RETRY,
                  voltage_limit_v: float | None, ramp_step_s: float = 0.1, open_port: PortOpener = open_pyserial):
@@ -93,9 +97,7 @@ class DeltaSM(LineInstrument, LampSupply):
                                     "rated voltage plus a margin); rig never programs the supply's maximum voltage")
         self.voltage_limit_v = voltage_limit_v
         super().__init__(url, name=name, clock=clock, timeout_s=timeout_s, retry=retry, open_port=open_port)
-        self._held: list[tuple[str, dict[str, Any]]] = []
         self._answered_at_s = -math.inf          # rig time of the supply's last reply
-        self._sink: EventSink | None = None
         self._on = False                         # rig switched the output on (and not off since)
         self._watchdog_off: str | None = None    # the supply's watchdog switched it off since: when
         self._blocked_reported: int | None = None    # the blocking bits of the last `lamp_output_blocked`
@@ -143,39 +145,24 @@ class DeltaSM(LineInstrument, LampSupply):
         (the supply may have restarted: setpoints at 0, table 5.1): remote hand-over, both limits (read back),
         the voltage setpoint at the lamp's limit, the watchdog armed. All are absolute: applying them twice is
         harmless."""
-        self._set(scpi.CLEAR_STATUS, policy=policy)      # stale entries would be blamed on our first setting
-        self._set(scpi.REMOTE_CV, "REMote", policy=policy)
-        self._set(scpi.REMOTE_CC, "REMote", policy=policy)
+        self.apply(scpi.CLEAR_STATUS, policy=policy)      # stale entries would be blamed on our first setting
+        self.apply(scpi.REMOTE_CV, "REMote", policy=policy)
+        self.apply(scpi.REMOTE_CC, "REMote", policy=policy)
         self._set_limit(scpi.CURRENT_LIMIT, scpi.CURRENT_LIMIT_VALUE, self.current_limit_a, self.max_current_a, policy)
         self._set_limit(scpi.VOLTAGE_LIMIT, scpi.VOLTAGE_LIMIT_VALUE, self.voltage_limit_v, self.max_voltage_v, policy)
-        self._set(scpi.VOLTAGE, plain(self.voltage_limit_v), policy=policy)
-        self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
+        self.apply(scpi.VOLTAGE, plain(self.voltage_limit_v), policy=policy)
+        self.apply(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
 
     def _set_limit(self, setting: Setting, query: Query[float], value: float, maximum: float,
                    policy: RetryPolicy | None) -> None:
         """Set an enabled limit and read it back: the supply may round it to its programming step (~0.02 ‰ of
         its maximum); more than 1 ‰ off fails the connection."""
-        self._set(setting, plain(value), policy=policy)
+        self.apply(setting, plain(value), policy=policy)
         read_back = self.retrying(query.text(), lambda: self.ask(query), policy=policy)
         if abs(read_back - value) > 0.5e-4 + 1e-3 * maximum:
             what = setting.template.split()[0].rpartition(":")[2].lower()
             raise DeviceError(self.name, f"{what} limit reads back as {read_back:g} {setting.unit} after setting "
                                          f"{value:g} {setting.unit}")
-
-    # -- events, held until a sink is attached ---------------------------------------------------
-    @property
-    def events(self) -> EventSink:
-        return self._sink or self._hold
-
-    @events.setter
-    def events(self, sink: EventSink) -> None:
-        self._sink = sink
-        held, self._held = getattr(self, "_held", []), []
-        for kind, fields in held:
-            sink(kind, **fields)
-
-    def _hold(self, kind: str, **fields: Any) -> None:
-        self._held.append((kind, fields))
 
     # -- LampSupply ----------------------------------------------------------------------------
     def identity(self) -> str:
@@ -194,7 +181,7 @@ class DeltaSM(LineInstrument, LampSupply):
 
     def set_output(self, on: bool) -> None:
         if on:
-            self._set(scpi.OUTPUT, "ON")
+            self.apply(scpi.OUTPUT, "ON")
             self._watchdog_off = self._blocked_reported = None
         else:
             self._switch_off()
@@ -219,7 +206,7 @@ class DeltaSM(LineInstrument, LampSupply):
         status = self.query(scpi.STATUS_A)
         blocked = [text for bit, text in scpi.BLOCKING_BITS.items() if status & bit]
         if blocked:
-            warnings = self._drain(scpi.WARNING, self.query)
+            warnings = self.drain(scpi.WARNING, scpi.ERROR_QUEUE_SIZE, self.query)
             reason = "; ".join(blocked) + (f" (warnings: {'; '.join(warnings)})" if warnings else "")
             bits = status & sum(scpi.BLOCKING_BITS)
             if bits != self._blocked_reported:
@@ -248,7 +235,7 @@ class DeltaSM(LineInstrument, LampSupply):
         try:
             for setting, args in steps:
                 try:
-                    self._set(setting, *args, policy=self._once)
+                    self.apply(setting, *args, policy=self._once)
                 except DeviceError as exc:
                     first = first or exc
         finally:
@@ -297,7 +284,7 @@ class DeltaSM(LineInstrument, LampSupply):
                     what="re-arming; the supply's output was switched off" if expired else
                     "re-applying the session's settings and re-arming (the supply may have restarted)")
         if expired:
-            self._set(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
+            self.apply(scpi.WATCHDOG_ARM, self.watchdog_ms, policy=policy)
         else:
             self._configure(policy)
 
@@ -307,23 +294,8 @@ class DeltaSM(LineInstrument, LampSupply):
         steps = max(1, math.ceil(round(ramp_s / self.ramp_step_s, 9)))
         for k in range(1, steps + 1):
             self.clock.sleep(ramp_s / steps)
-            self._set(scpi.CURRENT, plain(target if k == steps else start + (target - start) * k / steps),
+            self.apply(scpi.CURRENT, plain(target if k == steps else start + (target - start) * k / steps),
                       policy=policy, tolerate_errors=tolerate_errors)
-
-    def _set(self, setting: Setting, *args: object, policy: RetryPolicy | None = None,
-             tolerate_errors: bool = False) -> None:
-        """Send a setting and read the error queue; an entry there is a refusal of this setting (on the way
-        down to off, `tolerate_errors`: an event, because a stale entry must not stop the way down)."""
-        line = setting.text(*args)
-
-        def exchange() -> None:
-            self.send(setting, *args)
-            errors = self._read_errors()
-            if errors and tolerate_errors:
-                self.events("device_errors", device=self.name, what=line, errors=errors)
-            elif errors:
-                raise DeviceError(self.name, f"{line!r} refused: {'; '.join(errors)}")
-        self.retrying(line, exchange, policy=policy)
 
     def _switch_off(self) -> None:
         """Safety path: ramp down (best effort), then `OUTPut OFF`, whatever happened in the ramp."""
@@ -350,10 +322,7 @@ class DeltaSM(LineInstrument, LampSupply):
         threshold_a = max(OFF_CURRENT_A, OFF_CURRENT_REL * self.current_limit_a)
 
         def exchange() -> None:
-            self.send(scpi.OUTPUT, "OFF")
-            errors = self._read_errors()
-            if errors:
-                self.events("device_errors", device=self.name, what=line, errors=errors)
+            self.put(scpi.OUTPUT, "OFF", tolerate_errors=True)
             if self.ask(scpi.OUTPUT_STATE):
                 raise DeviceError(self.name, f"output still on after {line!r}", transient=True)
             current_a = self.ask(scpi.MEASURED_CURRENT)
@@ -361,18 +330,3 @@ class DeltaSM(LineInstrument, LampSupply):
                 raise DeviceError(self.name, f"output still carries {current_a:g} A after {line!r} "
                                              f"(off means below {threshold_a:g} A)", transient=True)
         self.retrying(line, exchange, policy=replace(self.retry, attempts=max(self.retry.attempts, OFF_ATTEMPTS)))
-
-    def _read_errors(self) -> list[str]:
-        """Drain the error queue (at most its size); the entries other than `0,...`."""
-        return self._drain(scpi.ERROR, self.ask)
-
-    def _drain(self, query: Query[tuple[int, str]], ask: Callable[[Query[tuple[int, str]]], tuple[int, str]]
-               ) -> list[str]:
-        """Read a queue (errors or warnings) with `ask` until `0,None`, at most ERROR_QUEUE_SIZE entries."""
-        entries = []
-        for _ in range(scpi.ERROR_QUEUE_SIZE):
-            code, entry = ask(query)
-            if code == 0:
-                break
-            entries.append(entry)
-        return entries

@@ -29,7 +29,7 @@ from typing import Any
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.interfaces import Attenuator
-from rig.drivers.line_instrument import LineInstrument, Query, Setting, UnexpectedReply
+from rig.drivers.line_instrument import Acknowledgement, LineInstrument, Query, Setting, UnexpectedReply
 from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
@@ -43,12 +43,6 @@ MOVE_MARGIN = 2.0
 _IDENTITY = re.compile(r"THORLABS FW\d{3}C\b")
 #: The wheels made: 6 or 12 positions.
 WHEEL_SIZES = (6, 12)
-
-
-def acknowledged(reply: str) -> None:
-    """A setting is answered by its echo and the prompt alone."""
-    if reply:
-        raise UnexpectedReply("{command!r} answered {reply!r} instead of only its echo and the prompt")
 
 
 def _wheel_size(reply: str) -> int:
@@ -70,6 +64,9 @@ POSITION = Query("pos?", int)
 class FW102C(LineInstrument, Attenuator):
     """Connects on construction. `timeout_s` bounds every reply but a move's, which gets
     `move_timeout_s`. `events(kind, **fields)` hears retries."""
+
+    #: A setting is answered by its echo and the prompt alone (`Command error …` is the wheel's refusal).
+    confirmation = Acknowledgement("only its echo and the prompt")
 
     def __init__(self, url: str, *, clock: Clock, name: str = "attenuator", timeout_s: float = 1.0,
                  retry: RetryPolicy = DEFAULT_RETRY, open_port: PortOpener = open_pyserial):
@@ -122,8 +119,8 @@ class FW102C(LineInstrument, Attenuator):
             raise DeviceError(self.name, f"{IDENTITY.text()!r} answered {identity!r}: not a Thorlabs FW102C/FW212C "
                                          f"filter wheel")
         self.positions = self.ask(POSITION_COUNT)
-        self.apply(SPEED, 1)
-        self.apply(SENSORS, 0)
+        self.put(SPEED, 1)
+        self.put(SENSORS, 0)
         self._read_position()
         self._identity = identity
 
@@ -142,7 +139,7 @@ class FW102C(LineInstrument, Attenuator):
         if start == target:
             return
         self._position = 0
-        self.apply(MOVE, target, timeout_s=self.move_timeout_s(start, target))
+        self.put(MOVE, target, timeout_s=self.move_timeout_s(start, target))
         reached = self._read_position()
         if reached != target:
             raise DeviceError(self.name, f"{MOVE.text(target)!r} ended at position {reached}, not {target} "
@@ -155,10 +152,6 @@ class FW102C(LineInstrument, Attenuator):
                                          f"1 … {self.positions}", transient=True)
         self._position = position
         return position
-
-    def apply(self, setting: Setting, *args: object, timeout_s: float | None = None) -> None:
-        """Send a setting and wait for its prompt (`Command error …` is a persistent error)."""
-        self.ask(Query(setting.template, acknowledged, setting.unit), *args, timeout_s=timeout_s)
 
     def check_refusal(self, line: str, reply: str) -> None:
         """`Command error <code>` is the wheel's verdict on the command: persistent."""

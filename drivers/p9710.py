@@ -39,7 +39,7 @@ from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading
 from rig.drivers.interfaces import IlluminanceMeter
-from rig.drivers.line_instrument import LineInstrument, Query, Setting, UnexpectedReply
+from rig.drivers.line_instrument import Acknowledgement, LineInstrument, Query, Setting, UnexpectedReply
 from rig.drivers.retry import DEFAULT_RETRY, RetryPolicy
 from rig.drivers.transport import PortOpener, open_pyserial
 
@@ -84,12 +84,6 @@ class MeterRefusal(DeviceError):
         self.code = code
 
 
-def acknowledged(reply: str) -> None:
-    """A command without an answer is acknowledged by a bare line feed: nothing else is."""
-    if reply:
-        raise UnexpectedReply("{command!r} answered {reply!r} instead of the bare line feed that acknowledges it")
-
-
 def _plain_mode_acknowledged(reply: str) -> None:
     """`TD0`'s acknowledgement: the bare line feed of the mode it sets, or `#` from the `TD1` mode it leaves."""
     if reply not in ("", "#"):
@@ -128,6 +122,9 @@ class P9710(LineInstrument, IlluminanceMeter):
     (`autorange_s`) longer than other replies; `timeout_s` is the link's own margin.
     `events(kind, **fields)` hears retries.
     """
+
+    #: A command without an answer is acknowledged by a bare line feed (`?x` is the meter's refusal).
+    confirmation = Acknowledgement("the bare line feed that acknowledges it")
 
     def __init__(self, url: str, *, calibration_lx_per_a: float, clock: Clock, name: str = "meter",
                  timeout_s: float = 1.0, retry: RetryPolicy = DEFAULT_RETRY, integration_s: float = 0.2,
@@ -197,13 +194,9 @@ class P9710(LineInstrument, IlluminanceMeter):
         if not _IDENTITY.fullmatch(model):
             raise DeviceError(self.name, f"{MODEL.text()!r} answered {model!r}: not a P-9710")
         serial_no, detector = self.ask(SERIAL_NUMBER), self.ask(DETECTOR)
-        self.apply(AUTORANGE_ON)
-        self.apply(INTEGRATION_TIME, self.integration_steps)
+        self.put(AUTORANGE_ON)
+        self.put(INTEGRATION_TIME, self.integration_steps)
         self._identity = f"Gigahertz-Optik {model} SN {serial_no} detector {detector}"
-
-    def apply(self, setting: Setting, *args: object) -> None:
-        """Send a setting and read its acknowledgement (a bare LF; `?x` is a persistent error)."""
-        self.ask(Query(setting.template, acknowledged, setting.unit), *args)
 
     def check_refusal(self, line: str, reply: str) -> None:
         """`?x` is the meter's verdict: a persistent MeterRefusal naming the code's meaning."""
