@@ -28,6 +28,7 @@ from rig.data.dataset_format import (
     FORMAT_VERSION,
     SKIPPED_COLUMNS,
     DatasetError,
+    DiskFullError,
     csv_line,
 )
 from rig.data.dataset_reader import cut_torn_tail, read_manifest
@@ -42,11 +43,6 @@ from rig.data.output_folder import (
     format_bytes,
     require_new_output,
 )
-
-
-class DiskFullError(DatasetError):
-    """A write ran out of space (ENOSPC, EDQUOT); the message names the folder and the space needed."""
-
 
 #: errno values of a full disk or an exhausted quota.
 DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
