@@ -20,8 +20,7 @@ from rig.config.rigfile import RigConfig
 from rig.drivers.interfaces import RigDevices
 from rig.planning.collisions import path_crosses, zones_of
 from rig.planning.ordering import travel_time_s
-
-Motors = tuple[float, float, float, float]
+from rig.planning.points import Motors
 
 
 class CollisionError(RuntimeError):
