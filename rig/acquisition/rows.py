@@ -17,8 +17,7 @@ import numpy as np
 from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
 from rig.physics.budget import lobe_angle_u_rel, point_budget
-from rig.physics.illuminance import IlluminanceEstimate, interpolate
-from rig.physics.pipeline import brdf_from_luminance
+from rig.physics.illuminance import IlluminanceEstimate, brdf_from_luminance, interpolate
 from rig.planning.points import PlannedPoint
 
 

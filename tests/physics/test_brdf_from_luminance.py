@@ -1,9 +1,12 @@
+"""brdf_from_luminance (rig.physics.illuminance): the measurement equation f_r = L / (E⊥ cos θi) and its GUM
+uncertainty, vectorised, finite and flagged towards grazing incidence."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rig.physics.pipeline import brdf_from_luminance
+from rig.physics.illuminance import GRAZING_LIMIT_DEG, brdf_from_luminance
 
 
 def test_closed_form_at_60_degrees():
@@ -58,5 +61,5 @@ def test_always_finite_and_consistent(lum, u_lum, e_normal, u_e, theta, u_theta)
     assert np.isfinite(result.brdf_per_sr) and np.isfinite(result.u_brdf_per_sr)
     assert result.u_brdf_per_sr >= 0
     assert result.brdf_per_sr * result.illuminance_lx == pytest.approx(lum, rel=1e-12, abs=1e-300)
-    if theta >= 88.0:
+    if theta >= GRAZING_LIMIT_DEG:
         assert result.grazing_incidence
