@@ -1,5 +1,10 @@
 """`rig report`: a dataset's measurement report as one self-contained HTML file (docs/report.md): the facts
-(rig.report.content), the figures (rig.report.figures) and the page (rig.report.html)."""
+(rig.report.content), the figures (rig.report.figures) and the page (rig.report.html).
+
+Entry points: `report_html` (below), `rig report` (rig.cli.report).
+May import: rig.session and every layer below it (it reads datasets with rig.data and fits with
+rig.analysis); not rig.monitor or rig.bench beside it, nor rig.cli.
+"""
 
 from __future__ import annotations
 
