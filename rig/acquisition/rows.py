@@ -16,7 +16,7 @@ import numpy as np
 
 from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
-from rig.physics.budget import lobe_angle_u_rel, point_budget
+from rig.physics.budget import lobe_angle_u_rel, point_budget, split_u
 from rig.physics.illuminance import IlluminanceEstimate, brdf_from_luminance, interpolate
 from rig.planning.points import PlannedPoint
 
@@ -47,8 +47,9 @@ class RowConstants:
 
 
 def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float,
-             constants: RowConstants, *, interpolated: bool = False) -> dict[str, Any]:
-    """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift);
+             constants: RowConstants, *, interpolated: bool = False, meter_cal_u_rel: float = 0.0) -> dict[str, Any]:
+    """The brdf.csv row of a measurement, given the E⊥ it gets (and how much of u(E⊥) is drift, and the
+    meter certificate's relative u, a part of u(E⊥) shared by every point: rig.physics.budget);
     `interpolated`: that E⊥ was interpolated between bracketing readings (a column, not a flag: it is
     the routine correction of `illuminance.correction: interpolate`, not a condition worth a look)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
@@ -64,7 +65,8 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
                           calibration_u_rel=constants.calibration_u_rel,
                           attenuation_u_rel=cap.u_rel_attenuation,
                           e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,
-                          theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg)
+                          theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg,
+                          u_meter_cal_lx=meter_cal_u_rel * e_perp_lx)
     return {
         "point_id": m.point.point_id, "series": m.point.series,
         "theta_i_deg": theta_i, "phi_i_deg": float(m.angles.phi_i_deg),
@@ -82,12 +84,13 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
         "footprint_deg": m.footprint_deg, "lobe_bias_rel": cap.lobe_bias_rel,
         "lobe_width_deg": cap.lobe_width_rel * m.footprint_deg, **budget,
         "illuminance_interpolated": int(interpolated),
+        **split_u(budget, float(res.brdf_per_sr), float(res.u_brdf_per_sr)),
     }
 
 
 def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:
     """The row with the E⊥ of the last reading, uncorrected (no drift part)."""
-    return brdf_row(m, reading.value_lx, reading.u_lx, 0.0, constants)
+    return brdf_row(m, reading.value_lx, reading.u_lx, 0.0, constants, meter_cal_u_rel=_cal_rel(reading))
 
 
 def bracketed_rows(measurements: Sequence[Measurement], before: IlluminanceEstimate,
@@ -98,5 +101,10 @@ def bracketed_rows(measurements: Sequence[Measurement], before: IlluminanceEstim
         return [latest_row(m, before, constants) for m in measurements]
     e = interpolate(before, after, np.array([m.rig_time_s for m in measurements]))
     return [brdf_row(m, float(e.value_lx[k]), float(e.u_lx[k]), float(e.u_drift_lx[k]), constants,
-                     interpolated=True)
+                     interpolated=True, meter_cal_u_rel=_cal_rel(before))
             for k, m in enumerate(measurements)]
+
+
+def _cal_rel(reading: IlluminanceEstimate) -> float:
+    """The meter certificate's relative u in a reading (the same for every reading of a run)."""
+    return reading.u_cal_lx / reading.value_lx if reading.value_lx > 0 else 0.0

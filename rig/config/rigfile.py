@@ -24,6 +24,7 @@ from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
 from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, AttenuatorDevice, DevicesConfig
+from rig.config.stated_u import unstated_u
 from rig.config.strict import StrictModel
 from rig.config.zones import CollisionsConfig
 from rig.core.values import SensorInfo
@@ -269,6 +270,16 @@ class RigConfig(StrictModel):
     collisions: CollisionsConfig = CollisionsConfig()
     simulation: SimulationConfig = SimulationConfig()
     attenuator: AttenuatorConfig | None = None
+    #: Calibration u a real rig's file does not state (rig.config.stated_u): used as 0 and said to be excluded.
+    #: The simulated rig's defaults are the simulator's truth (exact conversions, filters drawn within u_rel).
+    uncertainty_not_stated: tuple[str, ...] = ()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _record_unstated_u(cls, data: Any) -> Any:
+        if not isinstance(data, dict) or data.get("simulated", True) is True:
+            return data
+        return {**data, "uncertainty_not_stated": unstated_u(data)}
 
     @model_validator(mode="after")
     def _attenuator_has_filters(self):

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.physics.budget import BUDGET_COLUMNS
+from rig.physics.budget import BUDGET_COLUMNS, SPLIT_COLUMNS
 
 FORMAT = "rig-brdf-dataset"
 #: 1.1: empty cells for values that do not apply (NaN when read); column illuminance_interpolated.
@@ -33,7 +33,7 @@ CONTRACT_COLUMNS = (
 #: and whether E⊥ was interpolated between bracketing readings (1) or is the last reading (0).
 PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", "filter_position",
                    "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg", *BUDGET_COLUMNS,
-                   "illuminance_interpolated")
+                   "illuminance_interpolated", *SPLIT_COLUMNS)
 #: brdf.csv as rig writes it.
 BRDF_COLUMNS = CONTRACT_COLUMNS + PROJECT_COLUMNS
 SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")
@@ -56,6 +56,7 @@ UNITS = {
     "exposures_s": "s", "saturated_fraction": "1", "rig_time_s": "s", "roi_std_cd_m2": "cd/m2",
     "capture_time_s": "s", "filter_transmission": "1",
     "footprint_deg": "deg", "lobe_bias_rel": "1", "lobe_width_deg": "deg", **dict.fromkeys(BUDGET_COLUMNS, "1"),
+    **dict.fromkeys(SPLIT_COLUMNS, "1/sr"),
 }
 #: brdf.csv columns that are not numbers.
 TEXT_COLUMNS = {"point_id", "flags", "time_utc", "exposures_s"}

@@ -5,6 +5,13 @@ components; their root sum of squares matches u_brdf_per_sr / brdf_per_sr
 (the block-based ROI uncertainty already holds noise and texture together).
 The manifest gets, per component, how large it typically is and how much of
 the combined variance it makes, largest first, so a lab sees what to improve.
+
+Components are of two kinds (docs/uncertainty.md). The calibrations (the camera's luminance coefficient,
+the meter head's factor, a filter's transmission) are one error shared by every point they serve: they
+shift the whole dataset together and are CORRELATED_COMPONENTS. The rest differ from point to point. A
+row gives both parts (`u_brdf_point_per_sr`, `u_brdf_correlated_per_sr`; their quadrature sum is
+u_brdf_per_sr): the point-to-point part is what weights a fit and what the scatter between points is
+compared with; the correlated part moves every fitted parameter and road quantity at once.
 """
 
 from __future__ import annotations
@@ -22,10 +29,21 @@ BUDGET_COLUMNS = {
     "u_rel_lobe_angle": "axis angle errors through the lobe's measured slope (steep lobes only)",
     "u_rel_calibration": "luminance calibration of the camera",
     "u_rel_attenuation": "transmission of the neutral-density filter in the beam (its calibration)",
-    "u_rel_illuminance": "E⊥: meter readings and meter calibration",
+    "u_rel_illuminance": "E⊥: meter readings (repeatability, range)",
+    "u_rel_meter_calibration": "E⊥: the meter head's calibration factor (its certificate)",
     "u_rel_drift": "lamp drift between E⊥ readings",
     "u_rel_angle": "incidence angle, through tan θi",
 }
+#: Components that are one error for every point they serve: a calibration certificate's (camera, meter
+#: head) for the whole campaign, a filter's transmission for every point taken through that filter.
+CORRELATED_COMPONENTS = ("u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation")
+#: The two parts of u_brdf_per_sr, in brdf.csv after the budget (absolute, 1/sr).
+SPLIT_COLUMNS = {
+    "u_brdf_point_per_sr": "point-to-point part of u_brdf_per_sr: every component but the correlated ones",
+    "u_brdf_correlated_per_sr": "correlated part: the calibrations shared by many points (CORRELATED_COMPONENTS)",
+}
+#: What the report, the monitor and dataset.json say where a calibration's u is not stated in the rig file.
+NOT_STATED = "calibration u not stated: excluded"
 
 
 #: Standard uncertainty of the view direction relative to a specular lobe's axis, in units of the per-axis
@@ -62,13 +80,13 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
                  u_texture_cd_m2: float, u_lobe_cd_m2: float, lobe_angle_u_rel: float, calibration_u_rel: float,
                  attenuation_u_rel: float,
                  e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float, theta_i_deg: float,
-                 angle_u_deg: float) -> dict[str, float]:
+                 angle_u_deg: float, u_meter_cal_lx: float = 0.0) -> dict[str, float]:
     """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
 
     The camera parts are relative to the luminance, or to its uncertainty where the ROI is
     (nearly) black, so that an unlit point does not divide by zero. The dark frames' noise is
-    taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift out of u(E⊥),
-    so that each appears once.
+    taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift and the meter's
+    calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once.
     """
     lum = max(abs(luminance_cd_m2), u_luminance_cd_m2, 1e-30)
     return {
@@ -79,17 +97,28 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
         "u_rel_lobe_angle": lobe_angle_u_rel,
         "u_rel_calibration": calibration_u_rel,
         "u_rel_attenuation": attenuation_u_rel,
-        "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2, 0.0)) / e_perp_lx,
+        "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2 - u_meter_cal_lx ** 2, 0.0)) / e_perp_lx,
+        "u_rel_meter_calibration": u_meter_cal_lx / e_perp_lx,
         "u_rel_drift": u_drift_lx / e_perp_lx,
         "u_rel_angle": math.tan(math.radians(min(theta_i_deg, 89.9999))) * math.radians(angle_u_deg),
     }
 
 
+def split_u(budget: Mapping[str, float], brdf_per_sr: float, u_brdf_per_sr: float) -> dict[str, float]:
+    """The SPLIT_COLUMNS of a row: its correlated part from the budget's correlated components, the
+    point-to-point part the rest of u_brdf_per_sr (so that the two add in quadrature to it exactly)."""
+    u_corr = math.sqrt(sum(budget.get(c, 0.0) ** 2 for c in CORRELATED_COMPONENTS)) * abs(brdf_per_sr)
+    u_corr = min(u_corr, u_brdf_per_sr)
+    return {"u_brdf_point_per_sr": math.sqrt(u_brdf_per_sr ** 2 - u_corr ** 2), "u_brdf_correlated_per_sr": u_corr}
+
+
 def campaign_budget(rows: Sequence[Mapping[str, float]], columns: Mapping[str, str]) -> list[dict]:
-    """Per component: median and 95th percentile of its relative u, and its median share of u²."""
+    """Per component: median and 95th percentile of its relative u, and its median share of u². A component
+    no row gives (an empty cell, or a dataset written before it existed) is left out."""
     if not rows:
         return []
-    comp = {c: np.array([float(r[c]) for r in rows]) for c in columns}
+    comp = {c: np.array([_number(r.get(c)) for r in rows]) for c in columns}
+    comp = {c: np.nan_to_num(v) for c, v in comp.items() if np.any(np.isfinite(v))}
     total_sq = np.sum([v ** 2 for v in comp.values()], axis=0)
     total_sq = np.where(total_sq > 0, total_sq, 1.0)
     table = [{"component": c, "meaning": columns[c],
@@ -97,3 +126,11 @@ def campaign_budget(rows: Sequence[Mapping[str, float]], columns: Mapping[str, s
               "median_share_of_variance": float(np.median(v ** 2 / total_sq))}
              for c, v in comp.items()]
     return sorted(table, key=lambda row: -row["median_share_of_variance"])
+
+
+def _number(value: object) -> float:
+    """A budget cell as a float; NaN where it is empty or missing."""
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return math.nan
