@@ -44,6 +44,7 @@ from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading, PointCapture, Progress, ProgressCallback
+from rig.data.campaign_runs import RunRecorder
 from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
@@ -52,11 +53,8 @@ from rig.physics.budget import lobe_view_u_deg
 from rig.physics.footprint import view_footprint_deg
 from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule
 from rig.physics.optics import roi_inside_spot
+from rig.planning.estimate import NOMINAL_CAPTURE_S, WarmupEstimate
 from rig.planning.points import Plan, PlannedPoint, PointSource
-
-#: Nominal capture time per point for plan estimates (`rig plan`, the ETA): probe, one main
-#: exposure, readouts. The ETA corrects it by the rig time the points actually take.
-NOMINAL_CAPTURE_S = 0.05
 
 T = TypeVar("T")
 
@@ -69,7 +67,7 @@ class Runner:
 
     def __init__(self, campaign: Campaign, plan: Plan, devices: RigDevices, writer: DatasetWriter,
                  rig: RigConfig, progress: ProgressCallback | None = None, done_rows: Sequence[dict] = (),
-                 source: PointSource | None = None):
+                 source: PointSource | None = None, warmup: WarmupEstimate | None = None):
         """`done_rows`: rows already in the dataset (a resume); their points are not measured again.
         `source`: where more points come from once the plan's are measured (an adaptive campaign)."""
         self.campaign, self.plan, self.writer, self.rig = campaign, plan, writer, rig
@@ -82,7 +80,8 @@ class Runner:
         self.footprint_deg = view_footprint_deg(self.optics, point_windows(devices.camera, self.settings)[0])
         ill = campaign.illuminance
         self.schedule = ReadingSchedule(ill.remeasure, ill.every)
-        self.t0 = devices.clock.now()
+        self.runs = RunRecorder(writer, done_rows, campaign.lamp, rig, warmup)     # the manifest's `runs`
+        self.t0 = devices.clock.now() - self.runs.offset_s          # rig time continues across resumes
         self.done_ids = {r["point_id"] for r in done_rows}
         self.requests = StopRequests(devices.clock, self._stop_honoured)
         self._wait = self.requests.wait
@@ -90,7 +89,7 @@ class Runner:
         self._points_since_reading = 0
         self.lamp_ref_v: float | None = None       # lamp voltage when warm: the lamp suspender's reference
         self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait)
-        self.eta = Eta(self.rig_time)
+        self.eta = Eta(self.rig_time, self.runs.expected.seconds)
         g = rig.geometry
         constants = RowConstants(g.angle_u_deg, lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg),
                                  campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel)
@@ -135,8 +134,8 @@ class Runner:
 
     # -- the lamp and E⊥ ---------------------------------------------------------------------
     def _warm_up(self) -> None:
-        self.lamp_ref_v = warm_up(self.campaign.lamp, self.rig, self.dev, self._wait, self.rig_time, self._event,
-                                  self._report)
+        self.lamp_ref_v = self.runs.warmed(warm_up(self.campaign.lamp, self.rig, self.dev, self._wait, self.rig_time,
+                                                   self._event, self._report, self.eta), self.rig_time())
 
     def _read_illuminance(self, *, pause: bool = True) -> IlluminanceEstimate:
         """E⊥ from `illuminance.readings` meter readings; a meter that stops answering pauses the
@@ -397,4 +396,5 @@ class Runner:
             self.writer.event("safe_state", lamp_off=not any(p.startswith("lamp") for p in problems),
                               problems=problems, rig_time_s=self.rig_time())
             self.writer.update_manifest(**run_summary(ending, self.plan, self.measured, self.ledger.rows,
-                                                      self.footprint_deg, self.rig_time()))
+                                                      self.footprint_deg, self.rig_time()),
+                                        runs=self.runs.ended(ending.status, self.rig_time()))
