@@ -32,6 +32,7 @@ from rig.planning.plan import build_plan, estimate_rig_time_s, rig_time_comparis
 from rig.planning.points import Plan, describe_reason
 from rig.session.adaptive_sampler import planned_time_s, sampler_for
 from rig.session.connect import open_campaign_rig, open_rig
+from rig.session.warmup_estimate import expected_warmup
 
 
 def plan_angle(deg: float) -> str:
@@ -76,9 +77,12 @@ def print_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
         print(f"    {s.index:3d}  ({plan_angle(s.theta_i_deg):>5s}°, {plan_angle(s.phi_i_deg):>5s}°)  "
               f"{measured[s.index]:4d} / {planned[s.index]}")
     moves = estimate_rig_time_s(plan, rig.axes, NOMINAL_CAPTURE_S)
-    warm = campaign.lamp.warmup_min_s + campaign.lamp.warmup_check_s
-    print(f"  estimated rig time: {format_duration(moves + warm)} in {campaign.ordering} order "
-          f"(moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point + ≥ {warm:.0f} s lamp warm-up; "
+    warm = expected_warmup(campaign, rig)
+    print(f"  estimated rig time: {format_duration(rig.lamp.ramp_s + warm.seconds + moves)} in {campaign.ordering} "
+          "order, the lamp's warm-up included:")
+    print(f"    lamp warm-up {format_duration(rig.lamp.ramp_s + warm.seconds)} (its {rig.lamp.ramp_s:g} s ramp, then "
+          f"{format_duration(warm.seconds)}: {warm.source})")
+    print(f"    points {format_duration(moves)} (moves + {NOMINAL_CAPTURE_S * 1e3:.0f} ms nominal capture per point; "
           "exposures depend on the sample)")
     if plan.points:
         table_s, optimised_s = rig_time_comparison(campaign, rig, NOMINAL_CAPTURE_S)
