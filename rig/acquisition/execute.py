@@ -15,6 +15,7 @@ from typing import Any
 from rig import __version__
 from rig.acquisition.engine import Runner
 from rig.acquisition.outcome import RunEnding, Status, ending_of, record_unstarted
+from rig.acquisition.progress import stop_words
 from rig.acquisition.stopping import AbortRequested
 from rig.config.campaign import Campaign, campaign_sha256
 from rig.config.rigfile import RigConfig
@@ -83,7 +84,7 @@ class SignalRequests:
         """First Ctrl+C: finish the point, park, lamp off. Again: stop the axes now."""
         if self.stop is None:
             self.stop = "Ctrl+C"
-            _say("stopping after the point in flight: park, lamp off (Ctrl+C again: stop the axes now)")
+            _say(stop_words(self.runner.eta.stage if self.runner is not None else None))
         elif self.abort is None:
             self.abort = "Ctrl+C again"
             _say("stopping the axes now, lamp off")

@@ -1,8 +1,11 @@
 """A one-line progress bar with ETA for terminal runs (plain lines when not a terminal).
 
-On a terminal every redraw returns to the start of the line and fits in the terminal's
-width (asked at each redraw, so a resized window is followed): a line that wrapped could
-not be redrawn in place, and the bar would scroll.
+On a terminal every redraw returns to the start of the line, writes the line and clears what is
+left of the previous one (no padding: a ^C typed at the end of the line must not wrap); the line
+fits in the terminal's width (asked at each redraw, so a resized window is followed): a line that
+wrapped could not be redrawn in place, and the bar would scroll. A narrow terminal loses whole fields
+(the bar, the rig-time ETA, the rig time, the message's last words), never part of one. Whatever is
+said after the run (`end_progress_lines` first) starts on a line of its own.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ import os
 import shutil
 import sys
 import time
+import weakref
 from typing import TextIO
 
 from rig.core.values import Progress
@@ -22,6 +26,27 @@ MIN_BAR_WIDTH = 5
 #: Room kept beside the bar for the counts and both ETAs ("1865/1865 100%  rig 0:54:17  ETA 0:00:20 wall,
 #: 0:54:17 rig" is 58 characters); the message gets what is left.
 TEXT_ROOM = 58
+#: Clears from the cursor to the end of the line (ANSI EL): what a shorter redraw leaves of the longer one.
+CLEAR_TO_END = "\x1b[K"
+#: Bars whose line is drawn and not yet ended (`end_progress_lines`).
+_OPEN: weakref.WeakSet[ProgressBar] = weakref.WeakSet()
+#: What the first Ctrl+C does, by the run's stage (rig.acquisition.eta.Eta.stage); None: not started yet.
+STOP_WORDS = {None: "stopping before the run starts: nothing is switched on",
+              "starting": "stopping before the warm-up: lamp off",
+              "warm-up": "stopping the warm-up: lamp off, park",
+              "measuring": "stopping after the point in flight: park, lamp off",
+              "between": "stopping: park, lamp off"}
+
+
+def stop_words(stage: str | None) -> str:
+    """What the terminal says when the first Ctrl+C arrives in `stage` (the words of rig.acquisition.execute)."""
+    return f"{STOP_WORDS.get(stage, STOP_WORDS['between'])} (Ctrl+C again: stop the axes now)"
+
+
+def end_progress_lines() -> None:
+    """End every progress line still open, so that the next message starts on its own line."""
+    for bar in list(_OPEN):
+        bar.end_line()
 
 
 def format_duration(seconds: float) -> str:
@@ -58,28 +83,43 @@ class ProgressBar:
         self._first_done: int | None = None                     # points done at the first report (a resume)
         self._rate_origin: tuple[float, float] | None = None    # (wall, rig time) at the first point measured
 
-    def _eta(self, p: Progress, now: float) -> str:
+    def _etas(self, p: Progress, now: float) -> tuple[str, str]:
+        """The ETA field in full (wall and rig time) and short (the wall time, else the rig time)."""
         if p.eta_rig_s is None:
-            return "ETA --"
+            return "ETA --", "ETA --"
         rig = f"{format_duration(p.eta_rig_s)} rig"
         if self._rate_origin is None or p.rig_time_s <= self._rate_origin[1]:
-            return f"ETA {rig}"
+            return f"ETA {rig}", f"ETA {rig}"
         wall0, rig0 = self._rate_origin
-        wall_per_rig = (now - wall0) / (p.rig_time_s - rig0)
-        return f"ETA {format_duration(p.eta_rig_s * wall_per_rig)} wall, {rig}"
+        wall = format_duration(p.eta_rig_s * (now - wall0) / (p.rig_time_s - rig0))
+        return f"ETA {wall} wall, {rig}", f"ETA {wall}"
 
     def _line(self, p: Progress, frac: float, now: float, columns: int | None) -> str:
         """The progress line; with `columns`, at most columns - 1 characters (the last column would wrap).
 
-        The bar's width depends on the terminal's alone, so it does not jump between redraws;
-        a narrow terminal shortens it (down to MIN_BAR_WIDTH, then none) before the counts
-        and the ETA, and the message's end is cut last.
+        The bar's width depends on the terminal's alone, so it does not jump between redraws; a narrow
+        terminal shortens it (down to MIN_BAR_WIDTH, then none). Then whole fields go, the least needed
+        first: the rig-time half of the ETA, the rig time, the ETA; the message keeps the words that fit.
         """
         width = BAR_WIDTH if columns is None else min(BAR_WIDTH, columns - 1 - len("[] ") - TEXT_ROOM)
         bar = f"[{'#' * round(frac * width)}{'.' * (width - round(frac * width))}] " if width >= MIN_BAR_WIDTH else ""
-        line = (f"{bar}{p.done}/{p.total} {frac:4.0%}  rig {format_duration(p.rig_time_s)}  {self._eta(p, now)}"
-                + (f"  {p.message}" if p.message else ""))
-        return line if columns is None else line[:max(columns - 1, 0)]
+        counts, rig = f"{p.done}/{p.total} {frac:4.0%}", f"rig {format_duration(p.rig_time_s)}"
+        full, short = self._etas(p, now)
+        if columns is None:
+            return "  ".join(f for f in (bar + counts, rig, full, p.message) if f)
+        room = columns - 1 - len(bar)
+        fields = next((f for f in ((counts, rig, full), (counts, rig, short), (counts, short), (counts,))
+                       if len("  ".join(f)) <= room), ())
+        line = "  ".join(fields)
+        words = _words_within(p.message, room - len(line) - 2) if line else ""
+        return (bar + "  ".join(f for f in (line, words) if f))[:max(columns - 1, 0)]
+
+    def end_line(self) -> None:
+        """End the drawn line (a newline) if one is open: what follows starts on its own line."""
+        if self in _OPEN:
+            _OPEN.discard(self)
+            self.stream.write("\n")
+            self.stream.flush()
 
     def __call__(self, p: Progress) -> None:
         now = time.monotonic()
@@ -99,9 +139,18 @@ class ProgressBar:
         self._last_draw = now
         if self.tty:
             columns = self.columns or terminal_columns(self.stream)
-            self.stream.write("\r" + self._line(p, frac, now, columns).ljust(max(columns - 1, 0)))
+            self.stream.write("\r" + self._line(p, frac, now, columns) + CLEAR_TO_END)
+            _OPEN.add(self)
             if finished:
-                self.stream.write("\n")
+                self.end_line()
         else:
             self.stream.write(self._line(p, frac, now, None) + "\n")
         self.stream.flush()
+
+
+def _words_within(message: str, room: int) -> str:
+    """`message` if it fits in `room` characters, else its first words that fit followed by "…", else ""."""
+    if len(message) <= room:
+        return message
+    words = message[:max(room, 0)].rsplit(" ", 1)[0] if room > 1 else ""
+    return f"{words.rstrip()}…" if words and len(words) < len(message) and " " in message[:room] else ""

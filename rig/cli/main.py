@@ -14,7 +14,7 @@ from rig import __version__
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.acquisition.execute import RunOutcome, execute
-from rig.acquisition.progress import ProgressBar, format_duration
+from rig.acquisition.progress import ProgressBar, end_progress_lines, format_duration
 from rig.acquisition.resume import prepare_resume
 from rig.cli import bench, calibrate, export, fit, import_alta, monitor, plot, predict, report, sim
 from rig.config.campaign import Campaign, CampaignError, check_campaign_for_rig, load_campaign
@@ -197,7 +197,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 
 def _report_outcome(outcome: RunOutcome, n_skipped: int) -> int:
-    """How the run ended, on stderr, and its exit code."""
+    """How the run ended, on stderr (below the progress line), and its exit code."""
+    end_progress_lines()
     if outcome.lamp_problem:
         print(f"rig: WARNING: THE LAMP MAY STILL BE ON: the lamp supply did not confirm it switched off "
               f"({outcome.lamp_problem}). Switch it off at the supply.", file=sys.stderr)

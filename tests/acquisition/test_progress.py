@@ -8,7 +8,7 @@ import re
 import pytest
 
 from rig.acquisition.engine import Runner
-from rig.acquisition.progress import ProgressBar
+from rig.acquisition.progress import CLEAR_TO_END, ProgressBar, end_progress_lines, stop_words
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.values import Progress
@@ -56,7 +56,7 @@ def records(total: int = 200) -> list[Progress]:
 
 
 def drawn_lines(text: str) -> list[str]:
-    return [line for line in re.split(r"[\r\n]", text) if line]
+    return [line.removesuffix(CLEAR_TO_END) for line in re.split(r"[\r\n]", text) if line]
 
 
 @pytest.mark.parametrize("columns", [20, 40, 80, 159])
@@ -98,3 +98,55 @@ def test_plain_lines_every_ten_percent_when_not_a_terminal():
         bar(p)
     lines = out.getvalue().splitlines()
     assert len(lines) == 11 and lines[-1].startswith("[") and "100/100" in lines[-1]
+
+
+def narrowed(columns: int) -> tuple[list[str], list[str]]:
+    """Lines drawn at `columns`, and the tokens of the same lines drawn without a width limit."""
+    term, wide = Terminal(), Terminal()
+    bars = ProgressBar(term, min_interval_s=0.0, columns=columns), ProgressBar(wide, min_interval_s=0.0, columns=1000)
+    for done in range(0, 41):
+        p = Progress(done, 40, 800.0 + 4.0 * done, f"θi={done % 5 * 20}° φi={done % 3 * 45}° series {done % 5}",
+                     eta_rig_s=4.0 * (40 - done))
+        for bar in bars:
+            bar(p)
+    tokens = [t for line in drawn_lines(wide.getvalue()) for t in line.split()]
+    return drawn_lines(term.getvalue()), tokens
+
+
+@pytest.mark.parametrize("columns", [40, 60])
+def test_a_narrow_terminal_loses_whole_fields_never_part_of_one(columns):
+    """Issue 35: "θi=" and "ETA 0:00:02 wa" at 60 and 40 columns; now each token is whole, or a word of the
+    message followed by "…" where its later words were left out."""
+    lines, whole = narrowed(columns)
+    for line in lines:
+        assert len(line) <= columns - 1
+        for token in line.split():
+            assert token in whole or (token.endswith("…") and token[:-1] in whole), (token, line)
+    assert any("ETA" in line for line in lines)
+
+
+def test_a_redraw_clears_the_rest_of_the_line_instead_of_padding_it():
+    """A line padded to the terminal's width made the ^C echoed after it wrap."""
+    term = Terminal()
+    bar = ProgressBar(term, min_interval_s=0.0, columns=120)
+    bar(Progress(3, 10, 20.0, "a long message " * 3, eta_rig_s=10.0))
+    bar(Progress(4, 10, 22.0, "short", eta_rig_s=8.0))
+    last = term.getvalue().rsplit("\r", 1)[1]
+    assert last.endswith("short" + CLEAR_TO_END) and "  " + CLEAR_TO_END not in term.getvalue()
+
+
+def test_a_message_after_the_run_starts_on_its_own_line():
+    term = Terminal()
+    bar = ProgressBar(term, min_interval_s=0.0, columns=80)
+    bar(Progress(3, 10, 20.0, "θi=30°", eta_rig_s=10.0))
+    end_progress_lines()
+    term.write("interrupted: 3 points measured\n")
+    end_progress_lines()                                       # once only
+    assert term.getvalue().endswith(CLEAR_TO_END + "\ninterrupted: 3 points measured\n")
+
+
+def test_the_first_ctrl_c_says_what_will_happen_in_each_stage():
+    assert "point in flight" in stop_words("measuring")
+    for stage in (None, "starting", "warm-up", "between"):
+        assert "point in flight" not in stop_words(stage) and "Ctrl+C again" in stop_words(stage)
+    assert "warm-up" in stop_words("warm-up")
