@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.capture import DarkFrameCache, acquire_point, reduce_point  # noqa: E402
+from rig.acquisition.capture import RawCapturer  # noqa: E402
 from rig.config.capture import CaptureSettings  # noqa: E402
 from rig.config.rigfile import CameraConfig, RigConfig, SimulationConfig, camera_optics  # noqa: E402
 from rig.core.values import Window  # noqa: E402
@@ -59,16 +59,16 @@ def world_for(model: str, params: dict, responsivity: float, seed: int) -> SimWo
     return world
 
 
-def measure(world: SimWorld, camera: SimCamera, darks: DarkFrameCache, angles: tuple[float, ...],
-            settings: CaptureSettings) -> tuple[float, float, float, float, tuple[str, ...]] | None:
+def measure(world: SimWorld, capturer: RawCapturer,
+            angles: tuple[float, ...]) -> tuple[float, float, float, float, tuple[str, ...]] | None:
     """(error, z) of the plain ROI mean and of the corrected value at BRDF angles, and the point's flags."""
     motors = inverse_deg(*angles).as_array()
     if not np.all(np.isfinite(motors)):
         return None
     for name, value in zip(AXIS_NAMES, motors):
         world.axis_truth[name] = lambda value=float(value): value
-    acq = acquire_point(camera, settings, darks)
-    cap = reduce_point(acq)
+    acq = capturer.acquire()
+    cap = acq.reduce()
     if cap.saturated_fraction > 0 or "low_signal" in cap.flags:
         return None
     wi, wo = directions_scs(*np.radians(motors))
@@ -83,7 +83,7 @@ def measure(world: SimWorld, camera: SimCamera, darks: DarkFrameCache, angles: t
 
 
 def study(seeds: int) -> None:
-    settings = CaptureSettings()
+    settings = CaptureSettings(dark_max_age_s=None)      # darks taken once per world, as they always were
     rig = RigConfig()
     roi = Window.centred(rig.camera.width_px, rig.camera.height_px, settings.roi_px, settings.roi_px)
     print(f"ROI {settings.roi_px} px: view footprint (half-angle) {view_footprint_deg(camera_optics(rig), roi):.3f}°,"
@@ -93,14 +93,14 @@ def study(seeds: int) -> None:
         rows = []
         for seed in range(1, seeds + 1):
             world = world_for(model, params, responsivity, seed)
-            camera, darks = SimCamera(world), DarkFrameCache(clock=world.clock)
+            capturer = RawCapturer(SimCamera(world), settings, world.clock)
             for theta_i in INCIDENCES:
                 for offset in OFFSETS:
                     theta_o = theta_i + offset
                     if not 0 <= theta_o < 80:
                         continue
                     # diffuse/retro samples: the same views; the retro lobe is on the lamp's side
-                    result = measure(world, camera, darks, (theta_i, 0.0, theta_o, 180.0), settings)
+                    result = measure(world, capturer, (theta_i, 0.0, theta_o, 180.0))
                     if result is None:
                         continue
                     rows.append(result[:4])

@@ -39,6 +39,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig.acquisition.capture import Acquisition  # noqa: E402
 from rig.bench.error_vs_time import best_of, machine  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
@@ -129,7 +130,7 @@ SPLIT = ((SimCamera, "_render_scene", "simulated scene (rays, BRDF, texture)"),
          (GlintTexture, "__call__", "  of which the glint texture"),
          (lit_view.__module__, "lit_view", "  of which the rays (lit_view)"),
          (SensorModel, "read", "simulated sensor (noise, digitising)"),
-         ("rig.acquisition.attenuation", "reduce_point", "reduction (merge, ROI, flat field)"),
+         (Acquisition, "reduce", "reduction (merge, ROI, flat field)"),
          ("rig.acquisition.capture", "merge_exposures", "  of which the merge"),
          ("rig.acquisition.capture", "merged_rate", "  of which the merge"),
          ("rig.data.dataset_writer", "write_luminance_exr", "EXR files written"))

@@ -16,8 +16,8 @@ in-process camera) and prints, per measured point:
 - the bare acquisition loop, measured in the same run on a fresh simulated rig: lamp on, then for
   every point of the same plan start the stage and the arm toward it, wait for both, read the four
   encoders back and acquire the point's frames exactly as the pipeline does (`acquire_through` with
-  the campaign's capture settings and a dark-frame cache: probe, bracket, frames and darks through
-  the same drivers), and nothing else: no HDR reduce of the frames, no suspender checks, no E⊥
+  the run's capturer, of the campaign's capture settings and with its dark-frame cache: probe, bracket,
+  frames and darks through the same drivers), and nothing else: no HDR reduce of the frames, no suspender checks, no E⊥
   readings, no rows, no dataset. What the pipeline adds on top of it is its overhead.
 
     python benchmarks/per_point.py [CAMPAIGN.yaml] [--points N | --full] [--repeat N]
@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.attenuation import acquire_through  # noqa: E402
-from rig.acquisition.capture import DarkFrameCache  # noqa: E402
+from rig.acquisition.capturer import capturer_for  # noqa: E402
 from rig.acquisition.engine import Runner  # noqa: E402
 from rig.acquisition.execute import manifest_for  # noqa: E402
 from rig.acquisition.moves import Mover  # noqa: E402
@@ -160,14 +160,14 @@ def bare_loop(campaign: Campaign, plan: Plan, rig: RigConfig) -> Run:
         assert devices is not None
         devices.lamp.set_output(True)
         devices.lamp.set_current(rig.lamp.current_a)
-        darks = DarkFrameCache(frames_per_dark=settings.frames_per_exposure, clock=devices.clock)
+        capturer = capturer_for(devices.camera, settings, devices.clock)
         mover = Mover(devices, rig)
         with metered(type(devices.camera)) as meter:
             t0, cpu0 = time.perf_counter(), time.process_time()
             for point in plan.points:
                 mover.move(point.motors_deg)
                 mover.read_back()
-                acquire_through(None, devices.camera, settings, darks)
+                acquire_through(None, capturer)
             wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
         devices.lamp.set_output(False)
     return Run(wall, len(plan.points), meter.trips, meter.wire_s, meter.camera_s, cpu)

@@ -6,15 +6,16 @@ below the sensor's minimum, so a glossy peak or a retroreflective sheet seen at
 retroreflection would otherwise come back as a lower bound (`roi_saturated`).
 
 Per point, on the filter the previous point left in the beam:
-1. While a clearer filter exists, one probe frame of the ROI at the exposure that
+1. While a clearer filter exists, one probe frame of the ROI (the capturer's `probe`) at the exposure that
    gives, through the present filter, the signal the clearer one would give at the
    sensor's shortest exposure: if its brightest pixel stays below `CLEARER_HEADROOM`
    of the usable range, the clearer filter will not clip either: move to it and
    probe again. This keeps a dense filter from costing long exposures on the dim
    points after a bright stretch.
-2. The ordinary capture (rig.acquisition.capture). If ROI pixels clipped in every
-   exposure (the ROI merge says so), move to the next denser filter and take the
-   point again.
+2. The ordinary capture (the run's capturer, rig.acquisition.capturer). If ROI
+   pixels clipped in every exposure (the acquisition says so), move to the next
+   denser filter and take the point again. A camera that calibrates its own pictures
+   never clips (it has its own attenuation): the wheel stays on the clearest filter.
 A rig without a wheel, and points that never saturate, pay nothing: no probe is
 taken while the clearest filter is in the beam, so the wheel never moves for them.
 
@@ -35,17 +36,12 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields, replace
 
-import numpy as np
-
-from rig.acquisition.calibrated_capture import CalibratedAcquisition
-from rig.acquisition.capture import Acquisition, DarkFrameCache, acquire_point, point_windows, reduce_point
-from rig.config.capture import CaptureSettings
+from rig.acquisition.capturer import Capturer, PointAcquisition
 from rig.config.rigfile import AttenuatorConfig
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import PointCapture
-from rig.drivers.interfaces import Attenuator, LuminanceCamera, RigDevices
-from rig.physics.hdr import saturation_threshold_dn
+from rig.drivers.interfaces import Attenuator, RigDevices
 
 #: A clearer filter is chosen when its predicted ROI peak at the shortest exposure stays below this fraction
 #: of the usable raw range: texture and glints vary from frame to frame and view to view.
@@ -94,34 +90,28 @@ class Attenuation:
     def current(self) -> Filter:
         return self.filters[self.index]
 
-    def acquire(self, camera: LuminanceCamera, settings: CaptureSettings,
-                take: Callable[[], Acquisition | CalibratedAcquisition]) -> tuple[Acquisition | CalibratedAcquisition,
-                                                                               Filter]:
-        """The point's acquisition (`take()`, the ordinary capture) through the clearest filter that does not
-        clip its ROI, and that filter."""
+    def acquire(self, capturer: Capturer) -> tuple[PointAcquisition, Filter]:
+        """The point's acquisition (`capturer.acquire()`) through the clearest filter that does not clip its ROI,
+        and that filter."""
         if not self._started:
             self._move(0, reason="start")
             self._started = True
-        while self.index > 0 and self._clearer_fits(camera, settings):
+        while self.index > 0 and self._clearer_fits(capturer):
             self._move(self.index - 1, reason="clearer filter suffices")
         while True:
-            acquisition = take()
-            if not (self.index + 1 < len(self.filters) and _clipped(acquisition)):
+            acquisition = capturer.acquire()
+            if not (self.index + 1 < len(self.filters) and acquisition.clipped):
                 return acquisition, self.current
             self._move(self.index + 1, reason="ROI saturated at the shortest exposure")
 
-    def _clearer_fits(self, camera: LuminanceCamera, settings: CaptureSettings) -> bool:
-        sensor = camera.sensor
+    def _clearer_fits(self, capturer: Capturer) -> bool:
+        sensor = capturer.sensor
         clearer = self.filters[self.index - 1]
         probe_s = min(sensor.min_exposure_s * clearer.transmission / self.current.transmission, sensor.max_exposure_s)
-        roi, _ = point_windows(camera, settings)
-        frame = camera.capture(probe_s, roi)
-        usable = saturation_threshold_dn(sensor) - sensor.black_level_dn
-        peak = float(np.max(frame.pixels_dn)) - sensor.black_level_dn
-        # the probe's signal scaled to what the clearer filter gives at the shortest exposure
-        scale = (sensor.min_exposure_s * clearer.transmission) / (frame.exposure_s * self.current.transmission)
-        expected = peak * scale
-        return expected < CLEARER_HEADROOM * usable
+        peak, realised_s = capturer.probe(probe_s)
+        # the probe's peak scaled to what the clearer filter gives at the shortest exposure
+        scale = (sensor.min_exposure_s * clearer.transmission) / (realised_s * self.current.transmission)
+        return peak * scale < CLEARER_HEADROOM
 
     def _move(self, index: int, reason: str) -> None:
         target = self.filters[index]
@@ -143,13 +133,6 @@ def shorter_way(start: int, target: int, positions: int) -> list[int]:
     return [(start - 1 + step * k) % positions + 1 for k in range(1, count + 1)]
 
 
-def _clipped(acquisition: Acquisition | CalibratedAcquisition) -> bool:
-    """Whether ROI pixels saturated in every exposure (their rate is only a lower bound)."""
-    if isinstance(acquisition, CalibratedAcquisition):
-        return False            # a camera that calibrates itself has its own attenuation (the LMK's filters)
-    return bool(np.any(acquisition.roi_merge.clipped))
-
-
 def attenuation_for(devices: RigDevices, filters: AttenuatorConfig | None,
                     event: Callable[..., None]) -> Attenuation | None:
     """The run's attenuation: None on a rig without a filter wheel."""
@@ -159,15 +142,12 @@ def attenuation_for(devices: RigDevices, filters: AttenuatorConfig | None,
                        event, devices.clock)
 
 
-def acquire_through(attenuation: Attenuation | None, camera: LuminanceCamera, settings: CaptureSettings,
-                    darks: DarkFrameCache) -> tuple[Acquisition | CalibratedAcquisition, Filter | None]:
+def acquire_through(attenuation: Attenuation | None, capturer: Capturer) -> tuple[PointAcquisition, Filter | None]:
     """One point's acquisition, through the filter it needs if the rig has a wheel; and that filter."""
-    def take() -> Acquisition | CalibratedAcquisition:
-        return acquire_point(camera, settings, darks)
-    return (take(), None) if attenuation is None else attenuation.acquire(camera, settings, take)
+    return (capturer.acquire(), None) if attenuation is None else attenuation.acquire(capturer)
 
 
-def reduce_through(acquisition: Acquisition | CalibratedAcquisition, used: Filter | None) -> PointCapture:
-    """`reduce_point`, then the filter's transmission taken out (`attenuated`)."""
-    capture = reduce_point(acquisition)
+def reduce_through(acquisition: PointAcquisition, used: Filter | None) -> PointCapture:
+    """The acquisition reduced, then the filter's transmission taken out (`attenuated`)."""
+    capture = acquisition.reduce()
     return capture if used is None else attenuated(capture, used)

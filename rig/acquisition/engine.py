@@ -27,8 +27,7 @@ import numpy as np
 
 from rig.acquisition.alignment import align_run
 from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
-from rig.acquisition.calibrated_capture import point_windows
-from rig.acquisition.capture import DarkFrameCache
+from rig.acquisition.capturer import capturer_for
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
 from rig.acquisition.meter_readings import illuminance_of
@@ -71,13 +70,13 @@ class Runner:
         """`done_rows`: rows already in the dataset (a resume); their points are not measured again.
         `source`: where more points come from once the plan's are measured (an adaptive campaign)."""
         self.campaign, self.plan, self.writer, self.rig = campaign, plan, writer, rig
-        self.dev = devices = tended(given := devices)     # runs of meter readings and frames keep the lamp fed
+        self.dev = devices = tended(given := devices)     # runs of meter readings keep the lamp fed (frames: capturer)
         self.progress: ProgressCallback = progress or (lambda p: None)
         self.source = source
         self.settings = campaign.capture.settings()
-        self.darks = DarkFrameCache(frames_per_dark=self.settings.frames_per_exposure, clock=devices.clock)
+        self.capturer = capturer_for(devices.camera, self.settings, devices.clock)    # the capture path, chosen once
         self.optics = camera_optics(rig)
-        self.footprint_deg = view_footprint_deg(self.optics, point_windows(devices.camera, self.settings)[0])
+        self.footprint_deg = view_footprint_deg(self.optics, self.capturer.roi)
         ill = campaign.illuminance
         self.schedule = ReadingSchedule(ill.remeasure, ill.every)
         self.runs = RunRecorder(writer, done_rows, campaign.lamp, rig, warmup)     # the manifest's `runs`
@@ -238,7 +237,7 @@ class Runner:
         self.requests.check_stop()
 
     def _capture(self) -> PointCapture:
-        return reduce_through(*acquire_through(self.attenuation, self.dev.camera, self.settings, self.darks))
+        return reduce_through(*acquire_through(self.attenuation, self.capturer))
 
     # -- one point ---------------------------------------------------------------------------
     def _take_point(self, point: PlannedPoint, next_point: PlannedPoint | None) -> list[PlannedPoint]:
@@ -271,7 +270,7 @@ class Runner:
         motors = self.mover.read_back()
         angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
         time_utc, rig_time = utc_now(), self.rig_time()
-        acquisition, used = acquire_through(self.attenuation, self.dev.camera, self.settings, self.darks)
+        acquisition, used = acquire_through(self.attenuation, self.capturer)
         if next_point is not None:
             self.mover.start(next_point.motors_deg)      # merging and writing overlap the next move
         cap = reduce_through(acquisition, used)

@@ -8,7 +8,9 @@ rig file and the campaign's check bound it, rig.config.watchdog), but a run of t
 readings of 0.2 s for one E⊥ starved the watchdog, and the lamp went out in the middle of its own
 measurement (issue 30). So the engine talks to the meter and the camera through the wrappers below:
 after each blocking call, the clock runs whatever keep-alive is due (`clock.sleep(0.0)`), on the
-engine's own thread, between two exchanges, as the clock's design wants. A stop of the axes asked
+engine's own thread, between two exchanges, as the clock's design wants. The meter is wrapped by
+`tended`; the camera by the run's capturer (rig.acquisition.capturer), which knows its kind and the
+run's clock: `TendedCamera` for raw frames, `TendedCalibratedCamera` for calibrated pictures. A stop of the axes asked
 meanwhile (the clock's sleep check) is honoured there too, like in any other sleep.
 
 A long computation between two exchanges starves it alike on a real rig, where wall time is rig time: the
@@ -89,11 +91,9 @@ class TendedCalibratedCamera(TendedCamera, CalibratedLuminanceCamera):
 
 
 def tended(devices: RigDevices) -> RigDevices:
-    """`devices` with the meter and the camera wrapped (module docstring); the devices themselves are
-    unchanged (events are routed, and the rig made safe and closed, through either)."""
-    camera = devices.camera
-    wrap = TendedCalibratedCamera if isinstance(camera, CalibratedLuminanceCamera) else TendedCamera
-    return replace(devices, meter=TendedMeter(devices.meter, devices.clock), camera=wrap(camera, devices.clock))
+    """`devices` with the meter wrapped (module docstring; the camera is the capturer's to wrap); the devices
+    themselves are unchanged (events are routed, and the rig made safe and closed, through either)."""
+    return replace(devices, meter=TendedMeter(devices.meter, devices.clock))
 
 
 def computed_while_tending(clock: Clock, work: Callable[[], T]) -> T:

@@ -22,22 +22,7 @@ from pydantic import (
     model_validator,
 )
 
-from rig.config.capture import (
-    BracketStepStops,
-    BracketStops,
-    CaptureSettings,
-    DarkMaxAgeS,
-    ExposureCount,
-    ExposureS,
-    FramesPerExposure,
-    MaxFrames,
-    MinSnr,
-    Mode,
-    RoiPx,
-    TargetFraction,
-    TargetSnr,
-    check_frame_counts,
-)
+from rig.config.capture import Capture
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml, short
 from rig.config.rigfile import RigConfig
 from rig.config.strict import StrictModel
@@ -133,35 +118,6 @@ ViewSpec = Annotated[Annotated[CentredPattern, Tag("pattern")] | Annotated[Expli
 
 class Output(StrictModel):
     dir: Annotated[str, StringConstraints(min_length=1, max_length=4096), AfterValidator(printable)] = "runs/campaign"
-
-
-class Capture(StrictModel):
-    """HDR capture of one point: the fields and bounds of rig.config.capture.CaptureSettings (one table of
-    types in rig.acquisition.capture), so that every `capture` section that validates can be captured."""
-
-    roi_px: RoiPx = 70
-    mode: Mode = "adaptive"
-    target_snr: TargetSnr = 200.0
-    max_frames: MaxFrames = 16
-    bracket_count: ExposureCount = 5
-    bracket_step_stops: BracketStepStops = 1.0
-    dark_max_age_s: DarkMaxAgeS = 1800.0
-    probe_exposure_s: ExposureS = 0.002
-    target_fraction: TargetFraction = 0.7
-    bracket_stops: BracketStops = 2.0
-    max_exposures: ExposureCount = 5
-    frames_per_exposure: FramesPerExposure = 1
-    min_snr: MinSnr = 10.0
-    save_images: bool = False
-
-    @model_validator(mode="after")
-    def _frames_consistent(self):
-        check_frame_counts(self.max_frames, self.frames_per_exposure)
-        return self
-
-    def settings(self) -> CaptureSettings:
-        """The capture settings of this section (images saved: the whole frame is merged)."""
-        return CaptureSettings(**self.model_dump(exclude={"save_images"}), full_frame=self.save_images)
 
 
 class Illuminance(StrictModel):

@@ -8,7 +8,7 @@ import pytest
 
 from rig.acquisition.alignment import AlignmentError, align_on_specular, align_run, scan_grid_deg
 from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
-from rig.acquisition.capture import DarkFrameCache
+from rig.acquisition.capturer import capturer_for
 from rig.acquisition.moves import Mover
 from rig.config.campaign import Capture, SpecularAlignment
 from rig.config.rigfile import SimulationConfig, simulated_rig
@@ -29,9 +29,8 @@ class Session:
         self.mover = Mover(dev, rig)
         self.events: list[tuple[str, dict]] = []
         att = attenuation_for(dev, rig.attenuator, lambda kind, **f: None)
-        darks = DarkFrameCache(frames_per_dark=1, clock=dev.clock)
-        settings = Capture().settings()
-        self.capture = lambda: reduce_through(*acquire_through(att, dev.camera, settings, darks))
+        capturer = capturer_for(dev.camera, Capture().settings(), dev.clock)
+        self.capture = lambda: reduce_through(*acquire_through(att, capturer))
 
     def event(self, kind, **fields):
         self.events.append((kind, fields))

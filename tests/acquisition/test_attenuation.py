@@ -14,11 +14,12 @@ from rig.acquisition.attenuation import (
     reduce_through,
     shorter_way,
 )
-from rig.acquisition.capture import DarkFrameCache
+from rig.acquisition.capturer import capturer_for
 from rig.config.campaign import Capture
 from rig.config.rigfile import simulated_rig
 from rig.core.errors import DeviceError
-from rig.drivers.interfaces import Attenuator
+from rig.core.values import LuminanceImage, Window
+from rig.drivers.interfaces import Attenuator, CalibratedLuminanceCamera
 from rig.physics.brdf_models import get_model
 from rig.physics.geometry import AXIS_NAMES, inverse_deg
 from rig.simulators.camera import SimCamera
@@ -64,8 +65,7 @@ def rig():
     world.lamp.switch(True)
     wheel, events = WorldWheel(world), []
     attenuation = Attenuation(wheel, FILTERS, lambda kind, **f: events.append((kind, f)), world.clock)
-    settings = Capture().settings()
-    return world, SimCamera(world), wheel, attenuation, settings, DarkFrameCache(clock=world.clock), events
+    return world, wheel, attenuation, capturer_for(SimCamera(world), Capture().settings(), world.clock), events
 
 
 def truth_luminance(world: SimWorld, theta_i: float, theta_o: float, phi_o: float) -> float:
@@ -75,9 +75,9 @@ def truth_luminance(world: SimWorld, theta_i: float, theta_o: float, phi_o: floa
 
 
 def test_the_peak_is_taken_through_the_clearest_filter_that_does_not_clip(rig):
-    world, camera, wheel, attenuation, settings, darks, events = rig
+    world, wheel, attenuation, capturer, events = rig
     posed(world, 20, 20, 180)                                # the mirror direction: 382 sr⁻¹
-    acquisition, used = acquire_through(attenuation, camera, settings, darks)
+    acquisition, used = acquire_through(attenuation, capturer)
     assert used.position > 1 and wheel.moves == list(range(2, used.position + 1))    # one denser step at a time
     assert not acquisition.roi_merge.clipped.any()
     capture = reduce_through(acquisition, used)
@@ -90,36 +90,62 @@ def test_the_peak_is_taken_through_the_clearest_filter_that_does_not_clip(rig):
 
 
 def test_without_a_wheel_the_peak_is_a_lower_bound(rig):
-    world, camera, _, _, settings, darks, _ = rig
+    world, _, _, capturer, _ = rig
     posed(world, 20, 20, 180)
-    acquisition, used = acquire_through(None, camera, settings, darks)
+    acquisition, used = acquire_through(None, capturer)
     capture = reduce_through(acquisition, used)
     assert used is None and "roi_saturated" in capture.flags and capture.filter_position == 0
 
 
 def test_a_dim_point_after_the_peak_goes_back_to_the_open_position_after_a_probe(rig):
-    world, camera, wheel, attenuation, settings, darks, _ = rig
+    world, wheel, attenuation, capturer, _ = rig
     posed(world, 20, 20, 180)
-    acquire_through(attenuation, camera, settings, darks)
+    acquire_through(attenuation, capturer)
     dense = wheel.at
     posed(world, 20, 30, 180)                                # off the lobe: the diffuse base, 0.016 sr⁻¹
-    _, used = acquire_through(attenuation, camera, settings, darks)
+    _, used = acquire_through(attenuation, capturer)
     assert used.position == 1 and wheel.moves[-1] == 1 and dense > 1
 
 
 def test_points_that_never_saturate_never_move_the_wheel(rig):
-    world, camera, wheel, attenuation, settings, darks, _ = rig
+    world, wheel, attenuation, capturer, _ = rig
     for theta_o in (30, 40, 50):
         posed(world, 20, theta_o, 180)
-        _, used = acquire_through(attenuation, camera, settings, darks)
+        _, used = acquire_through(attenuation, capturer)
         assert used.position == 1
     assert wheel.moves == []
 
 
+class OverflowingLmk(CalibratedLuminanceCamera):
+    """A camera that calibrates its own pictures, each overflowing everywhere."""
+
+    sensor = simulated_rig().camera.sensor_info()
+
+    def identity(self) -> str:
+        return "overflowing LMK"
+
+    def capture_luminance(self, exposure_s: float, window: Window | None = None) -> LuminanceImage:
+        raise AssertionError("no single picture: the capture is an HDR one, and the wheel is never probed")
+
+    def capture_hdr_luminance(self, max_exposure_s, min_exposure_s, factor, window=None) -> LuminanceImage:
+        return LuminanceImage(np.full((window.height, window.width), 1e6, np.float32), window, (min_exposure_s,),
+                              "high_dynamic", overflow_fraction=1.0, peak_load=1.0)
+
+
+def test_a_camera_with_its_own_attenuation_keeps_the_wheel_on_the_clearest_filter(rig):
+    """Its acquisitions never count as clipped (they say so themselves): the overflowing point is flagged,
+    not retaken through a denser filter, and the wheel is never probed."""
+    world, wheel, attenuation, _, events = rig
+    capturer = capturer_for(OverflowingLmk(), Capture().settings(), world.clock)
+    acquisition, used = acquire_through(attenuation, capturer)
+    assert used.position == 1 and wheel.moves == [] and [e[1]["what"] for e in events] == ["start"]
+    assert "roi_saturated" in reduce_through(acquisition, used).flags
+
+
 def test_attenuated_divides_every_luminance_and_adds_the_transmission_uncertainty(rig):
-    world, camera, _, _, settings, darks, _ = rig
+    world, _, _, capturer, _ = rig
     posed(world, 20, 30, 180)
-    capture = reduce_through(acquire_through(None, camera, settings, darks)[0], None)
+    capture = reduce_through(acquire_through(None, capturer)[0], None)
     nd = Filter(3, 0.01, 0.02)
     out = attenuated(capture, nd)
     for name in ("luminance_cd_m2", "roi_std_cd_m2", "u_noise_cd_m2", "u_dark_cd_m2", "u_texture_cd_m2"):

@@ -1,4 +1,5 @@
-"""Capture of a point with a camera that delivers calibrated luminance (rig.acquisition.calibrated_capture).
+"""Capture of a point with a camera that delivers calibrated luminance (rig.acquisition.calibrated_capture),
+the capturer rig.acquisition.capturer chooses for it.
 
 A fake calibrated camera returns windows of a known luminance scene; the PointCapture is checked
 against closed forms (mean, pixel spread, calibration term, saturated fractions, metered exposure).
@@ -9,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from rig.acquisition.capture import DarkFrameCache, acquire_point, capture_point, reduce_point
+from rig.acquisition.calibrated_capture import CalibratedCapturer
+from rig.acquisition.capturer import capturer_for
 from rig.config.capture import CaptureSettings
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
@@ -82,7 +84,7 @@ def roi_of(image: np.ndarray, roi_px: int = 40) -> np.ndarray:
 
 
 def capture(camera, settings, clock=None):
-    return capture_point(camera, settings, DarkFrameCache(clock=clock))
+    return capturer_for(camera, settings, clock).acquire().reduce()
 
 
 def test_uniform_scene_gives_its_luminance_and_only_the_calibration_uncertainty():
@@ -188,11 +190,12 @@ def test_full_frame_returns_the_whole_picture():
 def test_capture_time_is_rig_time_on_the_clock_and_no_darks_are_taken():
     clock = StepClock()
     camera = FakeCalibratedCamera(np.full((HEIGHT, WIDTH), 5.0), clock=clock)
-    darks = DarkFrameCache(clock=clock)
-    acquisition = acquire_point(camera, HDR, darks)
-    cap = reduce_point(acquisition)
+    capturer = capturer_for(camera, HDR, clock)
+    acquisition = capturer.acquire()
+    cap = acquisition.reduce()
     assert cap.capture_time_s == pytest.approx(sum(cap.exposures_s) + 0.5)
-    assert len(darks) == 0 and darks.n_taken == 0
+    assert isinstance(capturer, CalibratedCapturer) and not hasattr(capturer, "darks") and cap.n_darks == 0
+    assert not acquisition.clipped          # the camera has its own attenuation: a filter wheel stays clear
 
 
 def test_raw_frames_are_refused_with_a_clear_message():
@@ -224,3 +227,20 @@ class BadCamera(FakeCalibratedCamera):
 def test_a_malformed_picture_is_a_device_error_naming_the_camera(fault, message):
     with pytest.raises(DeviceError, match=f"fake calibrated camera: {message}"):
         capture(BadCamera(fault), HDR)
+
+
+def test_the_probe_is_one_picture_of_the_roi_and_its_peak_load():
+    camera = FakeCalibratedCamera(np.full((HEIGHT, WIDTH), 5.0))
+    capturer = capturer_for(camera, HDR)
+    assert capturer.probe(0.5) == (pytest.approx(5.0 * 0.5 / FULL_RANGE_CD_S_M2), 0.5)
+    assert camera.calls == [("single", 0.5, Window(40, 20, 40, 40))]
+
+
+def test_the_capturer_lets_the_keep_alives_run_after_each_picture():
+    """On the run's clock the capturer drives the camera through rig.acquisition.tending's wrapper."""
+    clock = StepClock()
+    slept = []
+    clock.sleep = lambda s: slept.append(s)
+    camera = FakeCalibratedCamera(np.full((HEIGHT, WIDTH), 5.0))
+    capturer_for(camera, SINGLE, clock).acquire()
+    assert len(camera.calls) >= 2 and slept == [0.0] * len(camera.calls)

@@ -1,4 +1,9 @@
+"""The raw capture path (rig.acquisition.capture): a fake EMVA 1288 camera's frames, metered, merged and
+reduced by a `RawCapturer`; the run's dark frames (rig.acquisition.frames); the capture schema
+(rig.config.capture)."""
+
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -6,15 +11,11 @@ from hypothesis import given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
 
-from rig.acquisition.capture import (
-    DarkFrameCache,
-    acquire_point,
-    capture_point,
-    fixed_bracket,
-    frames_for_snr,
-    reduce_point,
-)
-from rig.config.capture import CaptureSettings
+from repo_paths import ROOT
+from rig.acquisition.capture import RawCapturer, fixed_bracket, frames_for_snr
+from rig.acquisition.capturer import capturer_for
+from rig.acquisition.frames import DarkFrameCache
+from rig.config.capture import Capture, CaptureParameters, CaptureSettings
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, SensorInfo, Window
@@ -25,7 +26,17 @@ from rig.physics.roi import block_means
 GAIN_DN_PER_E = 0.25
 CAL_CD_M2_PER_DN_S = 0.01
 READOUT_S = 0.05
-SETTINGS = CaptureSettings(roi_px=40)
+SETTINGS = CaptureSettings(roi_px=40, dark_max_age_s=None)     # no rig clock in most tests: darks never age
+
+
+def tuned(**changes) -> CaptureSettings:
+    """SETTINGS with `changes` (validated)."""
+    return CaptureSettings(**{**SETTINGS.model_dump(), **changes})
+
+
+def capture_point(camera, settings=SETTINGS, clock=None):
+    """One point captured and reduced by the capturer the camera gets."""
+    return capturer_for(camera, settings, clock).acquire().reduce()
 
 
 class FakeClock(Clock):
@@ -97,7 +108,7 @@ def roi_of(camera, capture):
 
 def test_exposure_puts_the_peak_near_the_target_without_saturating():
     camera = FakeCamera(flat(1.0e5))
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert len(capture.exposures_s) == 1 and capture.saturated_fraction == pytest.approx(0.0, abs=1e-12)
     assert capture.flags == ()
     ideal_s = 0.7 * (saturation_threshold_dn(camera.sensor) - 64) / (1.0e5 * GAIN_DN_PER_E)
@@ -110,7 +121,7 @@ def test_exposure_puts_the_peak_near_the_target_without_saturating():
 
 def test_a_bright_roi_is_exposed_short_enough():
     camera = FakeCamera(flat(1.0e8))                  # the 2 ms probe collects 10× the full well
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert capture.exposures_s == pytest.approx((2.0 ** -13,), rel=1e-12)   # probe 2⁻⁹ s → 2⁻¹¹ s → 2⁻¹³ s
     assert capture.saturated_fraction == pytest.approx(0.0, abs=1e-12) and capture.flags == ()
     assert capture.luminance_cd_m2 == pytest.approx(luminance(1.0e8), abs=4 * capture.u_luminance_cd_m2)
@@ -119,7 +130,7 @@ def test_a_bright_roi_is_exposed_short_enough():
 def test_a_high_dynamic_range_roi_gets_several_exposures_and_an_unbiased_mean():
     checker = np.indices((100, 120)).sum(axis=0) % 2 == 0
     camera = FakeCamera(np.where(checker, 5.0e7, 5.0e5))     # 100:1 within every 10-px block
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert len(capture.exposures_s) >= 2 and capture.flags == ()
     assert capture.saturated_fraction == pytest.approx(0.5)
     truth = luminance(roi_of(camera, capture))
@@ -129,7 +140,7 @@ def test_a_high_dynamic_range_roi_gets_several_exposures_and_an_unbiased_mean():
 
 def test_a_dim_roi_gets_the_longest_exposure_and_is_flagged():
     camera = FakeCamera(flat(0.0))
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert capture.exposures_s == pytest.approx((10.0,), rel=1e-12) and "low_signal" in capture.flags
     assert exposures_of(camera, 10.0) == 1                       # averaging could not help: not tried
     assert capture.luminance_cd_m2 == pytest.approx(0.0, abs=4 * capture.u_luminance_cd_m2)
@@ -137,7 +148,7 @@ def test_a_dim_roi_gets_the_longest_exposure_and_is_flagged():
 
 def test_a_roi_saturated_at_the_shortest_exposure_is_flagged():
     camera = FakeCamera(flat(1.0e10))
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert capture.exposures_s == pytest.approx((1e-4,), rel=1e-12) and "roi_saturated" in capture.flags
     assert capture.saturated_fraction == pytest.approx(1.0, abs=1e-12)
     assert np.isfinite(capture.luminance_cd_m2) and capture.luminance_cd_m2 < luminance(1.0e10)
@@ -145,16 +156,17 @@ def test_a_roi_saturated_at_the_shortest_exposure_is_flagged():
 
 def test_max_exposures_bounds_the_bracket():
     camera = FakeCamera(flat(1.0e10))
-    capture_point(camera, dataclasses.replace(SETTINGS, max_exposures=2), DarkFrameCache())
+    capture_point(camera, tuned(max_exposures=2))
     assert len({t for t, _ in camera.light_calls}) == 2
 
 
 def test_darks_are_reused_across_points():
-    camera, darks = FakeCamera(flat(1.0e8)), DarkFrameCache()
-    capture_point(camera, SETTINGS, darks)
-    taken = darks.n_taken
-    capture_point(camera, SETTINGS, darks)
-    assert darks.n_taken == taken == len(camera.dark_calls) == 1
+    camera = FakeCamera(flat(1.0e8))
+    capturer = RawCapturer(camera, SETTINGS)
+    capturer.acquire().reduce()
+    taken = capturer.darks.n_taken
+    capturer.acquire().reduce()
+    assert capturer.darks.n_taken == taken == len(camera.dark_calls) == 1
 
 
 def test_dark_cache_keys_on_time_and_window_and_can_be_invalidated():
@@ -188,8 +200,8 @@ def test_snap_is_idempotent_and_stays_in_range(exposure_s, max_exposure_s):
 
 def test_frame_averaging_and_full_frame():
     camera = FakeCamera(flat(1.0e5))
-    settings = dataclasses.replace(SETTINGS, frames_per_exposure=3, full_frame=True)
-    capture = capture_point(camera, settings, DarkFrameCache())
+    settings = tuned(frames_per_exposure=3, full_frame=True)
+    capture = capture_point(camera, settings)
     merged_s = capture.exposures_s[0]
     assert capture.image_cd_m2.shape == (100, 120)
     # the probes metered the ROI's window (margin 0 px) only; the exposure they chose was read whole, 3 times
@@ -204,9 +216,9 @@ def test_frame_averaging_and_full_frame():
 def test_a_points_numbers_do_not_depend_on_whether_its_image_is_saved():
     """The ROI's numbers come from the ROI's merge; the whole-frame merge feeds the saved image only."""
     camera = FakeCamera(flat(1.0e5))
-    acq = acquire_point(camera, dataclasses.replace(SETTINGS, full_frame=True), DarkFrameCache())
-    with_image = reduce_point(acq)
-    without = reduce_point(dataclasses.replace(acq, settings=dataclasses.replace(acq.settings, full_frame=False)))
+    acq = RawCapturer(camera, tuned(full_frame=True)).acquire()
+    with_image = acq.reduce()
+    without = dataclasses.replace(acq, settings=acq.settings.model_copy(update={"full_frame": False})).reduce()
     assert with_image.image_cd_m2 is not None and without.image_cd_m2 is None
     for field in (f for f in dataclasses.fields(without) if f.name != "image_cd_m2"):
         a, b = getattr(with_image, field.name), getattr(without, field.name)
@@ -215,14 +227,14 @@ def test_a_points_numbers_do_not_depend_on_whether_its_image_is_saved():
 
 def test_window_margin_grows_the_read_window_only():
     camera = FakeCamera(flat(1.0e5))
-    capture = capture_point(camera, dataclasses.replace(SETTINGS, window_margin_px=5), DarkFrameCache())
+    capture = capture_point(camera, tuned(window_margin_px=5))
     assert capture.roi_window == Window(40, 30, 40, 40)
     assert {window for _, window in camera.light_calls} == {Window(35, 25, 50, 50)}
 
 
 def test_calibration_uncertainty_is_combined():
     camera = FakeCamera(flat(1.0e5), calibration_u_rel=0.02)
-    capture = capture_point(camera, SETTINGS, DarkFrameCache())
+    capture = capture_point(camera, SETTINGS)
     assert 0.02 < capture.u_luminance_cd_m2 / capture.luminance_cd_m2 < 0.021
 
 
@@ -236,7 +248,7 @@ def test_bad_settings_and_bad_frames_are_refused():
     with pytest.raises(ValueError, match="dark_max_age_s"):
         CaptureSettings(dark_max_age_s=0.0)
     with pytest.raises(ValueError, match="roi_px"):
-        capture_point(FakeCamera(flat(1.0, (30, 30))), SETTINGS, DarkFrameCache())
+        capture_point(FakeCamera(flat(1.0, (30, 30))), SETTINGS)
 
     class CroppingCamera(FakeCamera):
         def capture(self, exposure_s, window=None):
@@ -244,17 +256,17 @@ def test_bad_settings_and_bad_frames_are_refused():
             return dataclasses.replace(frame, pixels_dn=frame.pixels_dn[1:])
 
     with pytest.raises(DeviceError):
-        capture_point(CroppingCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+        capture_point(CroppingCamera(flat(1.0e5)), SETTINGS)
 
 
 def test_adaptive_needs_fewer_exposures_and_less_time_than_the_fixed_bracket_and_both_are_unbiased():
     captures = {}
     for mode in ("adaptive", "fixed_bracket"):
-        camera, darks = FakeCamera(flat(1.0e5), seed=7), DarkFrameCache()
-        settings = dataclasses.replace(SETTINGS, mode=mode)
-        capture_point(camera, settings, darks)                 # first point: takes the darks
+        camera = FakeCamera(flat(1.0e5), seed=7)
+        capturer = RawCapturer(camera, tuned(mode=mode))
+        capturer.acquire()                                     # first point: takes the darks
         camera.light_calls.clear()
-        cap = capture_point(camera, settings, darks)
+        cap = capturer.acquire().reduce()
         assert cap.n_darks == 0 and cap.capture_time_s == pytest.approx(sum(t for t, _ in camera.light_calls))
         assert cap.luminance_cd_m2 == pytest.approx(luminance(1.0e5), abs=4 * cap.u_luminance_cd_m2)
         assert cap.flags == ()
@@ -266,8 +278,8 @@ def test_adaptive_needs_fewer_exposures_and_less_time_than_the_fixed_bracket_and
 
 def test_fixed_bracket_is_five_exposures_one_stop_apart_centred_on_the_metered_one():
     camera = FakeCamera(flat(1.0e5))
-    cap = capture_point(camera, dataclasses.replace(SETTINGS, mode="fixed_bracket"), DarkFrameCache())
-    adaptive = capture_point(FakeCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    cap = capture_point(camera, tuned(mode="fixed_bracket"))
+    adaptive = capture_point(FakeCamera(flat(1.0e5)), SETTINGS)
     assert len(cap.exposures_s) == 5
     np.testing.assert_allclose(np.diff(np.log2(cap.exposures_s)), 1.0, atol=1e-9)
     assert cap.exposures_s[2] == pytest.approx(adaptive.exposures_s[0], rel=1e-12)
@@ -278,17 +290,16 @@ def test_fixed_bracket_is_five_exposures_one_stop_apart_centred_on_the_metered_o
 @pytest.mark.parametrize("centre_s", [1e-4, 3e-3, 10.0])
 def test_fixed_bracket_is_shifted_into_the_sensor_range_keeping_its_count(centre_s):
     sensor, darks = FakeCamera(flat(0.0, (2, 2))).sensor, DarkFrameCache()
-    bracket = fixed_bracket(darks.snap(centre_s, sensor), dataclasses.replace(SETTINGS, mode="fixed_bracket"),
-                            darks, sensor)
+    bracket = fixed_bracket(darks.snap(centre_s, sensor), tuned(mode="fixed_bracket"), darks, sensor)
     assert len(bracket) == 5 and sensor.min_exposure_s <= bracket[0] and bracket[-1] <= sensor.max_exposure_s
     np.testing.assert_allclose(np.diff(np.log2(bracket)), 1.0, atol=1 / 6)     # within a ladder step at the ends
     assert all(darks.snap(t, sensor) == t for t in bracket)         # exact: ladder rungs (dark cache keys)
 
 
 def test_frame_averaging_reaches_the_target_snr_on_a_dark_scene_within_max_frames():
-    settings = dataclasses.replace(SETTINGS, target_snr=50.0)
+    settings = tuned(target_snr=50.0)
     camera = FakeCamera(flat(2.0))                      # 20 e⁻ in 10 s over 500 e⁻ of dark current
-    cap = capture_point(camera, settings, DarkFrameCache())
+    cap = capture_point(camera, settings)
     averaged = exposures_of(camera, 10.0)
     assert cap.exposures_s == pytest.approx((10.0,), rel=1e-12) and 1 < averaged < settings.max_frames
     assert cap.luminance_cd_m2 / cap.u_noise_cd_m2 >= 50.0
@@ -296,13 +307,13 @@ def test_frame_averaging_reaches_the_target_snr_on_a_dark_scene_within_max_frame
     assert cap.luminance_cd_m2 == pytest.approx(luminance(2.0), abs=4 * cap.u_luminance_cd_m2)
 
     camera = FakeCamera(flat(2.0))
-    cap = capture_point(camera, dataclasses.replace(settings, max_frames=3), DarkFrameCache())
+    cap = capture_point(camera, tuned(target_snr=50.0, max_frames=3))
     assert exposures_of(camera, 10.0) == 3 and cap.luminance_cd_m2 / cap.u_noise_cd_m2 < 50.0
 
 
 def test_frames_for_snr():
     """Target SNR 10 on a mean of 10: the variance must fall to 1."""
-    settings = dataclasses.replace(SETTINGS, target_snr=10.0, max_frames=16, min_snr=2.0)
+    settings = tuned(target_snr=10.0, max_frames=16, min_snr=2.0)
 
     def frame_count(var_frames, var_dark, m, n=1, mean=10.0):
         return frames_for_snr(mean, var_frames, var_dark, n, m, settings)
@@ -317,19 +328,19 @@ def test_frames_for_snr():
 
 def test_darks_are_reused_until_too_old_on_the_rig_clock():
     clock = FakeClock()
-    camera, darks = FakeCamera(flat(1.0e5), clock=clock), DarkFrameCache(clock=clock)
-    settings = dataclasses.replace(SETTINGS, dark_max_age_s=100.0)
-    first = capture_point(camera, settings, darks)
+    camera, settings = FakeCamera(flat(1.0e5), clock=clock), tuned(dark_max_age_s=100.0)
+    capturer = RawCapturer(camera, settings, clock)        # the run's clock, handed to the capturer
+    first = capturer.acquire().reduce()
     assert first.n_darks == 1
     calls = camera.light_calls + camera.dark_calls
     assert first.capture_time_s == pytest.approx(sum(t + READOUT_S for t, _ in calls))
     clock.sleep(50.0)
-    assert capture_point(camera, settings, darks).n_darks == 0
+    assert capturer.acquire().reduce().n_darks == 0
     clock.sleep(60.0)                                    # the dark is now 110 s old
-    assert capture_point(camera, settings, darks).n_darks == 1
+    assert capturer.acquire().reduce().n_darks == 1
     assert len(camera.dark_calls) == 2
     with pytest.raises(ValueError, match="clock"):
-        capture_point(camera, settings, DarkFrameCache())
+        capture_point(camera, settings)
 
 
 def test_a_short_dark_stack_is_topped_up_and_keeps_its_age():
@@ -345,14 +356,14 @@ def test_a_short_dark_stack_is_topped_up_and_keeps_its_age():
 
 
 def test_texture_and_noise_components():
-    flat_cap = capture_point(FakeCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    flat_cap = capture_point(FakeCamera(flat(1.0e5)), SETTINGS)
     assert flat_cap.u_texture_cd_m2 < min(2 * flat_cap.u_noise_cd_m2, 1e-3 * flat_cap.luminance_cd_m2)
     assert 0 < flat_cap.u_dark_cd_m2 < flat_cap.u_noise_cd_m2
 
     rng = np.random.default_rng(3)
     grains = 1.0e5 * (1 + 0.1 * rng.standard_normal((10, 12)))
     camera = FakeCamera(np.kron(grains, np.ones((10, 10))))    # 10-px grains on the block grid
-    cap = capture_point(camera, SETTINGS, DarkFrameCache())
+    cap = capture_point(camera, SETTINGS)
     blocks = block_means(roi_of(camera, cap)) * GAIN_DN_PER_E * CAL_CD_M2_PER_DN_S
     texture = blocks.std(ddof=1) / np.sqrt(blocks.size)
     assert cap.u_texture_cd_m2 == pytest.approx(texture, rel=0.05) and cap.u_texture_cd_m2 > 10 * cap.u_noise_cd_m2
@@ -364,6 +375,42 @@ def test_a_camera_that_cannot_read_windows_is_cropped():
         def _expose(self, rate_e_s, exposure_s, window, dark):
             return super()._expose(rate_e_s, exposure_s, self.full_window(), dark)
 
-    cap = capture_point(FullFrameCamera(flat(1.0e5)), SETTINGS, DarkFrameCache())
+    cap = capture_point(FullFrameCamera(flat(1.0e5)), SETTINGS)
     assert cap.roi_window == Window(40, 30, 40, 40) and cap.image_cd_m2 is None and cap.flags == ()
     assert cap.luminance_cd_m2 == pytest.approx(luminance(1.0e5), abs=4 * cap.u_luminance_cd_m2)
+
+
+def test_one_capture_schema_with_the_documented_defaults():
+    """The campaign's `capture` section and a run's settings declare each parameter once: the defaults agree
+    (they did not: dark_max_age_s 1800 vs None) and are docs/campaign.md's; only the section has save_images,
+    only the settings full_frame and the window margin."""
+    shared = set(CaptureParameters.model_fields)
+    section, settings = Capture(), CaptureSettings()
+    assert len(shared) == 13 and all(getattr(section, k) == getattr(settings, k) for k in shared)
+    assert set(Capture.model_fields) - shared == {"save_images"}
+    assert set(CaptureSettings.model_fields) - shared == {"full_frame", "window_margin_px"}
+    rows = re.findall(r"^\| `capture\.(\w+)` \| ([^|]+) \|", (ROOT / "docs" / "campaign.md").read_text(), re.M)
+    documented = {key: default.strip() for key, default in rows}
+    assert set(documented) == set(Capture.model_fields)
+    for key, default in documented.items():
+        value = getattr(section, key)
+        assert (default == str(value).lower()) if isinstance(value, (bool, str)) else float(default) == value, key
+
+
+def test_the_capture_path_is_chosen_once_per_capturer():
+    """A raw camera gets a RawCapturer, whose acquisitions say themselves whether they clipped; the camera's
+    kind is not asked again per point."""
+    camera = FakeCamera(flat(1.0e10))
+    capturer = capturer_for(camera, SETTINGS)
+    assert isinstance(capturer, RawCapturer) and capturer.roi == Window(40, 30, 40, 40)
+    clipped, dim = capturer.acquire(), RawCapturer(FakeCamera(flat(1.0e5)), SETTINGS).acquire()
+    assert clipped.clipped and not dim.clipped
+    assert "roi_saturated" in clipped.reduce().flags
+
+
+def test_the_probe_reads_the_roi_alone_and_scales_to_the_usable_range():
+    camera = FakeCamera(flat(1.0e7))
+    peak, realised_s = RawCapturer(camera, SETTINGS).probe(1e-3)
+    assert camera.light_calls == [(1e-3, Window(40, 30, 40, 40))] and realised_s == 1e-3
+    usable = saturation_threshold_dn(camera.sensor) - 64.0
+    assert peak == pytest.approx(1.0e7 * 1e-3 * GAIN_DN_PER_E / usable, rel=0.05)

@@ -1,11 +1,11 @@
-"""A camera with a calibration file: `reduce_point` divides its flat field out of the merged rate, for the
-ROI and for the full frame, so a uniform source reads uniform whatever the fall-off and PRNU."""
+"""A camera with a calibration file: a raw acquisition's `reduce()` divides its flat field out of the merged
+rate, for the ROI and for the full frame, so a uniform source reads uniform whatever the fall-off and PRNU."""
 
 import dataclasses
 
 import pytest
 
-from rig.acquisition.capture import DarkFrameCache, capture_point
+from rig.acquisition.capture import RawCapturer
 from rig.config.capture import CaptureSettings
 from rig.config.rigfile import RigConfig
 from rig.physics.brdf_models import get_model
@@ -31,8 +31,9 @@ def camera(calibrated: bool) -> UniformSourceCamera:
 
 @pytest.mark.parametrize("full_frame", [False, True])
 def test_flat_field_divided_out(full_frame):
-    settings = CaptureSettings(roi_px=40, full_frame=full_frame, frames_per_exposure=4, max_frames=4)
-    plain, calibrated = (capture_point(camera(c), settings, DarkFrameCache(4)) for c in (False, True))
+    settings = CaptureSettings(roi_px=40, full_frame=full_frame, frames_per_exposure=4, max_frames=4,
+                               dark_max_age_s=None)
+    plain, calibrated = (RawCapturer(camera(c), settings).acquire().reduce() for c in (False, True))
     assert calibrated.luminance_cd_m2 == pytest.approx(L_CD_M2, rel=3 * calibrated.u_noise_cd_m2 / L_CD_M2)
     assert calibrated.u_luminance_cd_m2 >= 0.01 * calibrated.luminance_cd_m2
     assert calibrated.roi_std_cd_m2 < plain.roi_std_cd_m2          # PRNU and fall-off gone

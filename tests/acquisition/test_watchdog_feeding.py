@@ -19,15 +19,15 @@ import pytest
 import yaml
 
 from repo_paths import CAMPAIGNS, RIGS
+from rig.acquisition.capturer import capturer_for
 from rig.acquisition.engine import Runner
-from rig.acquisition.tending import tended
 from rig.cli.main import main
-from rig.config.campaign import CampaignError, check_campaign_for_rig, load_campaign, parse_campaign
+from rig.config.campaign import CampaignError, Capture, check_campaign_for_rig, load_campaign, parse_campaign
 from rig.config.rigfile import load_rig_config, simulated_rig
 from rig.config.watchdog import hdr_picture_s
 from rig.core.values import Frame, Window
 from rig.data.dataset_writer import DatasetWriter
-from rig.drivers.interfaces import CalibratedLuminanceCamera, RigDevices
+from rig.drivers.interfaces import CalibratedLuminanceCamera
 from rig.planning.plan import build_plan
 from rig.simulators.clock import SimClock
 from rig.simulators.rig import SimulatedRig
@@ -140,13 +140,11 @@ class FakeCalibratedCamera(CalibratedLuminanceCamera):
 
 def test_a_calibrated_cameras_pictures_let_the_keep_alives_run_and_it_stays_one():
     """The LMK's metering series (up to four single pictures) is fed between pictures like a raw camera's frames,
-    and the wrapped camera is still a CalibratedLuminanceCamera, so its points take the calibrated path."""
+    and the camera its capturer wraps is still a CalibratedLuminanceCamera, so its points take the calibrated path."""
     clock = SimClock()
     fed = []
     clock.keep_alive(1.0, lambda: fed.append(clock.now()))
-    devices = RigDevices(arm=None, stage=None, lamp=None, meter=None, camera=FakeCalibratedCamera(clock, 0.6),
-                         clock=clock)
-    camera = tended(devices).camera
+    camera = capturer_for(FakeCalibratedCamera(clock, 0.6), Capture().settings(), clock).camera
     assert isinstance(camera, CalibratedLuminanceCamera) and camera.identity() == "fake LMK"
     assert [camera.capture_luminance(0.5) for _ in range(4)] == ["picture"] * 4
     assert fed == pytest.approx([1.2, 2.4])           # after the pictures that ended past a due time

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from rig.acquisition.capture import DarkFrameCache, capture_point
+from rig.acquisition.capturer import capturer_for
 from rig.config.capture import CaptureSettings
 from rig.config.rigdevices import CameraDevice
 from rig.config.rigfile import CameraConfig, RigConfigError
@@ -197,7 +197,7 @@ def test_rigs_capture_reads_the_roi_through_it(open_camera):
     # the emulation's picture does not depend on exposure, so its darks cancel it: no signal, but every
     # frame is the ROI's window at a realised exposure inside the clipped range
     cam = open_camera(dark_frames="same")
-    cap = capture_point(cam, CaptureSettings(roi_px=40), DarkFrameCache())
+    cap = capturer_for(cam, CaptureSettings(roi_px=40, dark_max_age_s=None)).acquire().reduce()
     assert cap.roi_window == Window.centred(SENSOR, SENSOR, 40, 40)
     assert cap.n_frames >= 1 and cap.n_darks >= 1
     low, high = cam.sensor.min_exposure_s, cam.sensor.max_exposure_s

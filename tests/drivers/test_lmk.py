@@ -16,7 +16,7 @@ import types
 import numpy as np
 import pytest
 
-from rig.acquisition.capture import DarkFrameCache, capture_point
+from rig.acquisition.capturer import capturer_for
 from rig.config.capture import CaptureSettings
 from rig.config.rigdevices import CameraDevice
 from rig.config.rigfile import CameraConfig, RigConfigError
@@ -300,7 +300,7 @@ def test_a_point_captured_through_the_driver_is_the_roi_mean_of_labsoft_s_image(
     luminance = np.full((HEIGHT, WIDTH), 3.9, dtype=np.float32)
     luminance[:, 60:] = 4.1                          # right half brighter: the ROI mean is 4
     server = FakeLmkServer(luminance)
-    cap = capture_point(camera(server), CaptureSettings(roi_px=40), DarkFrameCache())
+    cap = capturer_for(camera(server), CaptureSettings(roi_px=40)).acquire().reduce()
     assert ("iHighDynPic", 10.0, 1e-4, 4.0, 0, 0.0) in server.calls     # longest, shortest, 2 stops apart
     assert server.calls[-1] == ("iImageGetDumpToMemory", -2, 20, 59, 40, 79)
     assert cap.luminance_cd_m2 == pytest.approx(4.0)
