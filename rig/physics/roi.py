@@ -84,10 +84,23 @@ def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
 
 
 def u_mean_of_blocks(means: np.ndarray) -> float:
-    """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included."""
-    dev = means - means.mean()
+    """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included.
+
+    The spread is taken about the least-squares plane through the block means, not about their mean: a
+    linear trend across the ROI is the BRDF's slope over the view footprint (a lobe's flank), which the
+    ROI mean averages out exactly (the ROI is symmetric about its centre, whose direction the row's angles
+    are), so it is no error of the mean; counted as texture it widened u on every sloped point (issue 34).
+    The plane's three parameters are taken out of the degrees of freedom."""
+    rows, cols = means.shape
     n = means.size
-    var = float(np.sum(dev ** 2)) / (n - 1)
+    if rows >= 2 and cols >= 2 and n > 3:
+        y, x = np.mgrid[0:rows, 0:cols]
+        design = np.stack([np.ones(n), x.ravel() - x.mean(), y.ravel() - y.mean()], axis=1)
+        coef = np.linalg.lstsq(design, means.ravel(), rcond=None)[0]
+        dev, dof = means - (design @ coef).reshape(rows, cols), n - 3
+    else:
+        dev, dof = means - means.mean(), n - 1
+    var = float(np.sum(dev ** 2)) / dof
     products = np.concatenate([(dev[:, :-1] * dev[:, 1:]).ravel(), (dev[:-1, :] * dev[1:, :]).ravel()])
     cov = float(np.clip(products.mean(), 0.0, var)) if products.size else 0.0
     return float(np.sqrt((n * var + 2 * products.size * cov) / n ** 2))

@@ -69,3 +69,17 @@ def test_statistics_follow_an_affine_change_of_unit(scale, offset, seed):
     assert moved.mean == pytest.approx(scale * base.mean + offset, rel=1e-9, abs=1e-9 * abs(offset))
     for name in ("u_mean", "u_mean_noise", "std", "u_texture"):
         assert getattr(moved, name) == pytest.approx(scale * getattr(base, name), rel=1e-6)
+
+
+def test_a_linear_slope_across_the_roi_is_not_texture():
+    """A lobe's flank makes the block means a plane; the ROI mean averages it out, so u stays the texture's."""
+    rng = np.random.default_rng(2)
+    flat, sloped = [], []
+    y, x = np.mgrid[0:70, 0:70]
+    for _ in range(100):
+        grains = rng.normal(0, 0.05, (14, 14))
+        texture = 1.0 + np.kron(grains, np.ones((5, 5)))
+        flat.append(roi_statistics(texture, np.full(texture.shape, 1e-8)).u_mean)
+        sloped.append(roi_statistics(texture * (1 + 0.004 * (x - 34.5) + 0.002 * (y - 34.5)),
+                                     np.full(texture.shape, 1e-8)).u_mean)
+    assert np.sqrt(np.mean(np.square(sloped))) == pytest.approx(np.sqrt(np.mean(np.square(flat))), rel=0.05)
