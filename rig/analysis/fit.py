@@ -22,7 +22,12 @@ their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
 * the covariance and standard errors come from the Jacobian at the optimum through the delta method, scaled
   by the residual variance (unweighted), the MAD² (robust) or max(1, χ²/dof) (weighted);
   directions the data do not constrain (a null space of the Jacobian) give `inf`, never NaN;
-* RMSE, NRMSE and NCC are always computed on the unweighted values (rig.analysis.metrics).
+* RMSE, NRMSE and NCC are always computed on the unweighted values (rig.analysis.metrics);
+* a dataset's weights are its point-to-point u (`u_brdf_point_per_sr`, issue 34): the calibrations shared by
+  every point (rig.physics.budget.CORRELATED_COMPONENTS) do not scatter the points about the model, they move
+  them together, so they go to `stderr_correlated` instead: each shared relative error δ·s_k (one per source:
+  the calibrations of camera and meter, each filter's transmission) moves the optimum by the linear response
+  Δx = J⁺ (s f / σ), and the sources' moves add in quadrature (`correlated_sources`).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -131,6 +136,9 @@ class FitResult:
     fixed: tuple[str, ...] = ()
     at_bound: tuple[str, ...] = ()
     undetermined: tuple[str, ...] = ()
+    #: Standard uncertainty of each parameter from the errors shared by the points (calibrations): apart from
+    #: `stderr`, which the point-to-point scatter gives; empty when no shared u was given.
+    stderr_correlated: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-safe: non-finite numbers (undetermined stderr, NCC of a constant model) become null."""
@@ -138,6 +146,7 @@ class FitResult:
             "model": self.model,
             "params": self.params,
             "stderr": {k: _finite_or_none(v) for k, v in self.stderr.items()},
+            "stderr_correlated": {k: _finite_or_none(v) for k, v in self.stderr_correlated.items()},
             "covariance": {p: {q: _finite_or_none(v) for q, v in row.items()} for p, row in self.covariance.items()},
             "metrics": {k: _finite_or_none(v) for k, v in self.metrics.items()},
             "diagnostics": {
@@ -209,12 +218,15 @@ def _check_inputs(wi, wo, f, u, weighting: str, loss: str) -> tuple[np.ndarray, 
 
 def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.ndarray | None = None, *,
         weighting: str = "uncertainty", loss: str = "linear", starts: int = 4,
-        fixed: Mapping[str, float] | None = None, seed: int = 0) -> FitResult:
+        fixed: Mapping[str, float] | None = None, seed: int = 0,
+        shared: Mapping[str, np.ndarray] | None = None) -> FitResult:
     """Fit `model_name` to f(wi, wo) (SCS unit vectors, sr⁻¹) by bounded, transformed least squares.
 
     weighting "uncertainty" minimises Σ((model − f)/u)², "none" the paper's Σ(model − f)².
     The `starts` best distinct optima of the global stage are refined on all points (when it worked on a
-    subsample); `fixed` holds parameters at given values.
+    subsample); `fixed` holds parameters at given values. `shared`: per source of an error shared by the
+    points, each point's relative standard uncertainty from it (0 where it does not apply), propagated to
+    `stderr_correlated` (module docstring).
     """
     t0 = time.perf_counter()
     model = get_model(model_name)
@@ -273,7 +285,12 @@ def fit(model_name: str, wi: np.ndarray, wo: np.ndarray, f: np.ndarray, u: np.nd
     stderr = {p: float(se[space.free.index(p)]) if p in space.free else 0.0 for p in model.param_names}
     covariance = {p: {q: float(cov_p[space.free.index(p), space.free.index(q)]) for q in space.free}
                   for p in space.free}
+    moves = [scale_p * (np.linalg.pinv(final.jac) @ (np.asarray(s_rel, float) * f / sigma))
+             for s_rel in (shared or {}).values()]
+    u_corr = np.sqrt(np.sum(np.square(moves), axis=0)) if moves else np.zeros(len(space.free))
     return FitResult(
+        stderr_correlated={p: float(u_corr[space.free.index(p)]) if p in space.free else 0.0
+                           for p in model.param_names} if shared else {},
         model=model.name, params={p: params[p] for p in model.param_names}, stderr=stderr, covariance=covariance,
         metrics=goodness_of_fit(f, fr), chi2_dof=chi2_dof, n_points=n, n_starts=found.n_runs,
         n_starts_at_best=found.n_at_best, converged=bool(final.status > 0), message=final.message, nfev=nfev,
@@ -327,5 +344,24 @@ def fit_dataset(dataset: Dataset, model_name: str, *, exclude_flags: tuple[str, 
     if not keep.any():
         raise ValueError(f"{dataset.path}: no row without the flags {', '.join(exclude_flags)}")
     wi, wo = dataset.directions()
-    return fit(model_name, wi[keep], wo[keep], dataset["brdf_per_sr"][keep],
-               dataset["u_brdf_per_sr"][keep], **kwargs)
+    u, shared = point_u(dataset, keep)
+    return fit(model_name, wi[keep], wo[keep], dataset["brdf_per_sr"][keep], u, shared=shared, **kwargs)
+
+
+def point_u(dataset: Dataset, keep: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The u that weights a fit of the `keep` rows, and the shared errors to propagate (module docstring).
+
+    A dataset that gives the point-to-point part on every row is weighted by it, and its calibrations are
+    the shared sources: the camera's and the meter's together (every point), each filter position's
+    transmission (its points). Otherwise (an import, a dataset written before the split) the whole
+    `u_brdf_per_sr` weights it, with nothing apart."""
+    cols = dataset.columns
+    if "u_brdf_point_per_sr" not in cols or not np.all(usable_u(dataset["u_brdf_point_per_sr"][keep])):
+        return dataset["u_brdf_per_sr"][keep], {}
+    shared = {"calibration": np.hypot(*(np.nan_to_num(dataset[c][keep]) if c in cols else np.zeros(keep.sum())
+                                        for c in ("u_rel_calibration", "u_rel_meter_calibration")))}
+    if "filter_position" in cols and "u_rel_attenuation" in cols:
+        position, u_att = dataset["filter_position"][keep], np.nan_to_num(dataset["u_rel_attenuation"][keep])
+        for p in np.unique(position[np.isfinite(position) & (position > 0)]):
+            shared[f"filter {int(p)}"] = np.where(position == p, u_att, 0.0)
+    return dataset["u_brdf_point_per_sr"][keep], shared

@@ -1,0 +1,111 @@
+"""Benchmark: is a measured point's uncertainty calibrated, point by point, on samples nobody tuned it for? (issue 34)
+
+Draws samples from the five families of rig.bench.draws (the reconstruction study's: RetroPhong, MRM + diffuse,
+modified Phong, Oren–Nayar, Lambert, parameters over the published fits' ranges), measures each with the paper
+campaign's table (campaigns/spieringhs2023-rm1.yaml) on its own simulated rig (seed = the draw's, so that every
+error a run shares — the sample's grain, the filters' transmission errors, the axes' zero errors — is drawn anew),
+and compares every measured point with the closed-form truth.
+
+The point-to-point part is what a row's `u_brdf_point_per_sr` must cover: the error left once the errors shared
+by the points are taken out. The shared ones here are the filters' transmissions (the simulator's camera and
+meter are exact: campaigns/rigs/simulated.yaml), one per filter position, so the common relative shift of each
+position's points (their weighted mean of f/f_true − 1) is taken out before z = (f − f_true (1 + shift))/u_point.
+Per family: k = 2 coverage and std(z) of that part (calibrated: about 95 % and 1), the median |shift| against the
+median correlated u (a shift the correlated part should cover), and z against the whole u.
+
+    python benchmarks/measurement_coverage.py [--draws 10] [--seed 101] [--first 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from rig.acquisition.run import run_campaign  # noqa: E402
+from rig.bench.draws import FAMILIES, Draw, draw  # noqa: E402
+from rig.bench.error_vs_time import machine  # noqa: E402
+from rig.config.campaign import SimulatedBrdf, load_campaign  # noqa: E402
+from rig.config.rigfile import SimulationConfig, simulated_rig  # noqa: E402
+from rig.data.dataset_reader import load  # noqa: E402
+from rig.physics.brdf_models import get_model  # noqa: E402
+from rig.session.connect import open_campaign_rig  # noqa: E402
+
+CAMPAIGN = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"
+
+
+def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
+    """Measure the drawn sample with the paper table on a simulated rig of its own; per point: z of the
+    point-to-point part (shared shift per filter taken out), z against the whole u, and per filter position
+    the shift with the correlated u it had."""
+    base = load_campaign(CAMPAIGN)
+    sample = base.sample.model_copy(update={"simulated_brdf": SimulatedBrdf(model=drawn.family, params=drawn.params)})
+    campaign = base.model_copy(update={"sample": sample})
+    rig = simulated_rig()
+    rig = rig.model_copy(update={"simulation": SimulationConfig(seed=drawn.seed * 1000 + drawn.index)})
+    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
+    if outcome.status != "complete":
+        raise RuntimeError(f"{drawn.describe()}: run {outcome.status}")
+    d = load(out)
+    wi, wo = d.directions()
+    truth = get_model(drawn.family)(wi, wo, drawn.params)
+    f, u, u_point, u_corr = d["brdf_per_sr"], d["u_brdf_per_sr"], d["u_brdf_point_per_sr"], d["u_brdf_correlated_per_sr"]
+    rel, u_point_rel = f / truth - 1, u_point / f
+    z_point, shifts, u_shared = np.empty_like(f), [], []
+    for position in np.unique(d["filter_position"]):
+        at = d["filter_position"] == position
+        w = 1 / u_point_rel[at] ** 2
+        shift = float(np.sum(w * rel[at]) / np.sum(w))
+        z_point[at] = (f[at] - truth[at] * (1 + shift)) / u_point[at]
+        shifts.append(shift)
+        u_shared.append(float(np.median(u_corr[at] / f[at])))
+    return {"z_point": z_point, "z_total": (f - truth) / u, "rel": rel, "shift": np.array(shifts),
+            "u_corr": np.array(u_shared), "u_point_rel": u_point_rel}
+
+
+def line(name: str, r: dict[str, np.ndarray]) -> str:
+    z, zt = r["z_point"], r["z_total"]
+    return (f"{name:22s} {z.size:5d} {np.mean(np.abs(z) <= 2):7.3f} {z.std():6.2f} {z.mean():+6.2f} "
+            f"{np.median(r['u_point_rel']):8.4f} {np.median(np.abs(r['rel'])):8.4f} "
+            f"{np.max(np.abs(r['shift'])):7.4f} {np.median(r['u_corr']):7.4f} "
+            f"{np.mean(np.abs(zt) <= 2):7.3f} {zt.std():6.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--draws", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=101)
+    parser.add_argument("--first", type=int, default=0, help="index of the first draw")
+    args = parser.parse_args()
+    print(machine())
+    print(f"draws {args.first}…{args.first + args.draws - 1} of seed {args.seed} (rig.bench.draws), each measured "
+          f"with {CAMPAIGN.name}'s table on its own simulated rig; z of the point-to-point part (per-filter shift out)")
+    head = (f"{'draw':22s} {'n':>5s} {'cov k=2':>7s} {'std z':>6s} {'mean z':>6s} {'med u_pt':>8s} {'med|rel|':>8s} "
+            f"{'max|sh|':>7s} {'u_corr':>7s} {'cov tot':>7s} {'std zt':>6s}")
+    print(head)
+    pooled: dict[str, list[dict[str, np.ndarray]]] = {}
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(args.first, args.first + args.draws):
+            drawn = draw(args.seed, k)
+            r = point_errors(drawn, Path(tmp) / f"draw{k}")
+            pooled.setdefault(drawn.family, []).append(r)
+            print(line(drawn.name, r), flush=True)
+    print("per family (draws pooled):")
+    print(head)
+    for family in FAMILIES:
+        if family in pooled:
+            runs = pooled[family]
+            print(line(family, {key: np.concatenate([r[key] for r in runs]) for key in runs[0]}))
+    print(f"wall time {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
