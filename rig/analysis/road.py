@@ -30,6 +30,12 @@ interface, so this bound is the honest choice: for the positively weighted sums 
 r-table cell it is full positive correlation; for the ratio S1 it is correlation −1 (the relative
 uncertainties add). The quadrature error is not included (it is orders of magnitude smaller).
 
+The calibrations shared by every point (the camera's coefficient and the meter head's factor,
+rig.physics.budget) are not in the predictor's u when it comes from a fit weighted by the point-to-point
+part: they shift every value by one common relative error, so R_L, Qd, Q0 and every r-table cell by that
+same relative amount (S1, a ratio, not at all). That part is given apart (`u_correlated` in road.json),
+from the dataset's `shared_calibration_u_rel`.
+
 Extrapolation: the rig measures θi ≤ 85° and cannot view within the lamp's occlusion cone (the camera
 cannot be where the lamp is), so R_L (θi 88.76°, 1.05° from retroreflection), the r-table rows with
 tan γ > tan 85° = 11.4 and the near-retro cells come from the predictor's extrapolation; which ones
@@ -42,7 +48,7 @@ import json
 import math
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -116,6 +122,8 @@ class RoadQuantities:
     Q0: Integral                      # sr⁻¹ (≡ cd·m⁻²·lx⁻¹)
     S1: float
     u_S1: float
+    #: Relative standard uncertainty shared by every value (calibrations), apart from the u above.
+    u_rel_correlated: float = 0.0
 
 
 def cap_quadrature(theta_max_deg: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,14 +185,24 @@ def classes_within(value: float, u: float, limits: Mapping[str, float], k: float
     return names[lo:hi + 1]
 
 
-def road_quantities(predictor: Predictor, *, phi_o_deg: float = 0.0, n: int = 96) -> RoadQuantities:
+def shared_calibration_u_rel(dataset: Any) -> float:
+    """The relative u every point of a dataset shares: its camera and meter calibrations (median over rows of
+    u_rel_calibration ⊕ u_rel_meter_calibration; 0 for a dataset without them, e.g. an import)."""
+    cols = [dataset[c] for c in ("u_rel_calibration", "u_rel_meter_calibration") if c in dataset.columns]
+    return float(np.nanmedian(np.hypot(*cols))) if len(cols) == 2 and len(cols[0]) else 0.0
+
+
+def road_quantities(predictor: Predictor, *, phi_o_deg: float = 0.0, n: int = 96,
+                    correlated_u_rel: float = 0.0) -> RoadQuantities:
     """R_L, Qd, the r-table, Q0 and S1 of the sample `predictor` describes (see the module docstring).
 
     phi_o_deg: the observer's azimuth in the sample's frame (the traffic direction); matters only for
     anisotropic samples. n: Gauss–Legendre order of the two integrals (2n² predictions each).
+    correlated_u_rel: the calibrations' relative u shared by every value (`shared_calibration_u_rel`).
     """
     with np.errstate(all="ignore"):      # degenerate predictions (0/0, overflow) become null in road.json
-        return _road_quantities(predictor, phi_o_deg, n)
+        q = _road_quantities(predictor, phi_o_deg, n)
+    return replace(q, u_rel_correlated=correlated_u_rel)
 
 
 def _road_quantities(predictor: Predictor, phi_o_deg: float, n: int) -> RoadQuantities:
@@ -302,6 +320,12 @@ def _road_document(q: RoadQuantities) -> dict:
                                       "Qd": classes_within(q.Qd.value, q.Qd.u, QD_CLASSES)},
         "method": q.method,
         "uncertainty": "k = 1; u(Y) = sum |dY/df| u(f): the bound over every correlation of the predicted values",
+        "u_correlated": {"R_L_mcd_m2_lx": q.R_L_mcd_m2_lx * q.u_rel_correlated,
+                         "Qd_mcd_m2_lx": q.Qd.value * q.u_rel_correlated, "Q0": q.Q0.value * q.u_rel_correlated,
+                         "relative": q.u_rel_correlated,
+                         "note": "k = 1; the calibrations shared by every point (camera, meter head): one relative "
+                                 "shift of R_L, Qd, Q0 and every r value together, apart from the u above; S1 is "
+                                 "free of it"},
         "geometry_deg": {"R_L": {"theta_i": R_L_THETA_I_DEG, "theta_o": R_L_THETA_O_DEG, "delta_phi": 0.0},
                          "Qd": {"theta_o": QD_THETA_O_DEG}, "r_table": {"theta_o": R_TABLE_THETA_O_DEG},
                          "phi_o": q.phi_o_deg},

@@ -13,7 +13,7 @@ import numpy as np
 from rig.analysis.held_out import interpolating_predictor
 from rig.analysis.resampled import resampled
 from rig.analysis.result_files import read_fit
-from rig.analysis.road import road_json, road_quantities, write_road_json
+from rig.analysis.road import road_json, road_quantities, shared_calibration_u_rel, write_road_json
 from rig.cli.predict import predictor_for
 from rig.core.exits import EXIT_OK, fail
 from rig.core.interrupts import interruptible
@@ -49,7 +49,7 @@ def _export_road(args: argparse.Namespace) -> list[Path]:
                          "measures")
     out = _new_output(args)
     ds = load(Path(args.dataset))
-    q = road_quantities(predictor_for(ds, "model", args.fit, args.model))
+    q = road_quantities(predictor_for(ds, "model", args.fit, args.model), correlated_u_rel=shared_calibration_u_rel(ds))
     if args.format == "rtb":
         return [write_rtb(road_json(q), out, ds.sample_id())]
     path = write_road_json(q, out)
