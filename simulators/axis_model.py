@@ -88,6 +88,7 @@ class AxisModel:
         rest = -0.5 * backlash_deg
         self._move = _Move(world.clock.now(), 0.0, 0.0, cfg.speed_deg_s, cfg.accel_deg_s2, rest, rest)
         world.axis_truth[name] = self.true_position_deg
+        world.axis_zero_deg[name] = self.zero_offset_deg
 
     # -- what is true now -----------------------------------------------------------------------
     def command_position_deg(self) -> float:

@@ -22,8 +22,10 @@ from rig.core.bands import PARALLEL_MIN_PX, shared
 from rig.core.errors import DeviceError
 from rig.core.values import Frame, Window
 from rig.drivers.interfaces import LuminanceCamera
-from rig.physics.geometry import LAMP_DIRECTION_GCS, camera_frame, camera_unit, sample_frame
+from rig.physics.charuco_board import BoardError, BoardLayout
+from rig.physics.geometry import LAMP_DIRECTION_GCS, camera_frame, camera_unit
 from rig.physics.optics import CameraOptics, faces_lamp
+from rig.simulators.board import board_luminance, lamp_exit_luminance
 from rig.simulators.sensor import SensorModel
 from rig.simulators.texture import GlintTexture, ValueNoiseTexture
 from rig.simulators.world import SimWorld
@@ -101,6 +103,24 @@ class SimCamera(LuminanceCamera):
         self.model = SensorModel.from_config(cfg.camera, cfg.simulation, world.rng)
         self._scene_key: tuple[object, ...] | None = None
         self._scene_value: tuple[Window, np.ndarray, np.ndarray] | None = None
+        #: What is before the camera: the sample in the lamp's beam (`sample`), a ChArUco board on the holder
+        #: under the room's lights, or the empty holder with the lamp's exit beyond (`open`); see `show`.
+        self.scene: str = "sample"
+        self.board: BoardLayout | None = None
+
+    def show(self, scene: str) -> None:
+        """Put `scene` before the camera, as the operator does for `rig calibrate geometry`: `sample`, `open` or
+        `board <squares_x> <squares_y> <square_m> <marker_m> <dictionary>` (docs/sim-camera-protocol.md)."""
+        kind, *words = scene.split() or [""]
+        if kind == "board":
+            try:
+                self.board = BoardLayout.from_scene(words)
+            except BoardError as exc:
+                raise DeviceError("camera", f"scene {scene!r}: {exc}") from None
+        elif kind not in ("sample", "open") or words:
+            raise DeviceError("camera", f"scene {scene!r}: one of 'sample', 'open', 'board <squares_x> "
+                                        "<squares_y> <square_m> <marker_m> <dictionary>'")
+        self.scene = kind
 
     def identity(self) -> str:
         return "simulated LMK 98-4 (rig sim)"
@@ -111,6 +131,8 @@ class SimCamera(LuminanceCamera):
         angles: the scene's, through the filter-wheel filter in the beam (true transmission), if any. The
         sensor reads float32 (half the memory of a full frame to fill and read)."""
         transmission = self.world.transmission()       # of the filter in the beam, if any
+        if self.scene != "sample":
+            return (self._calibration_scene(window) * transmission).astype(dtype)
         lum = np.full((window.height, window.width), self.world.config.simulation.ambient_cd_m2 * transmission,
                       dtype=dtype)
         scene = self._scene(window)
@@ -118,6 +140,16 @@ class SimCamera(LuminanceCamera):
             box, lit, per_lux = scene
             lum[window.inner(box)][lit] = per_lux * (illuminance_normal_lx * transmission)
         return lum
+
+    def _calibration_scene(self, window: Window) -> np.ndarray:
+        """The board or the lamp's exit (rig.simulators.board) at the world's truth."""
+        world, geometry = self.world, self.world.config.geometry
+        motors = np.radians(world.motor_angles_deg())
+        if self.scene == "board":
+            assert self.board is not None, "show() sets the board with the scene"
+            return board_luminance(self.optics, window, self.board, motors, world.holder_frame(), world.camera_mount)
+        return lamp_exit_luminance(self.optics, window, motors, world.camera_mount, geometry.lamp_distance_m,
+                                   geometry.spot_diameter_m / 2, world.lamp.relative_output(world.clock.now()))
 
     def _scene(self, window: Window) -> tuple[Window, np.ndarray, np.ndarray] | None:
         """Where the window sees the lit sample, and its luminance there per lux of E⊥: the box of the
@@ -141,8 +173,8 @@ class SimCamera(LuminanceCamera):
         (`_spot_bounds`): a tenth of a full frame, whose unlit rest is ambient anyway.
         """
         world = self.world
-        alpha, beta, a, b = np.radians(world.motor_angles_deg())
-        frame = sample_frame(alpha, beta)
+        a, b = np.radians(world.motor_angles_deg()[2:])
+        frame = world.holder_frame()
         if not faces_lamp(frame[:, 2]):
             return None
         box = self._spot_bounds(window, frame[:, 2], a, b)

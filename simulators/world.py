@@ -14,7 +14,8 @@ import numpy as np
 from rig.config.rigfile import RigConfig
 from rig.core.clock import Clock
 from rig.physics.brdf_models import BrdfModel
-from rig.physics.geometry import AXIS_NAMES
+from rig.physics.geometry import AXIS_NAMES, sample_frame
+from rig.physics.goniometer_fit import rotation_from_vector
 from rig.planning.points import as_motors
 from rig.simulators.clock import SimClock
 from rig.simulators.lamp import LampPhysics
@@ -34,6 +35,8 @@ class SimWorld:
         self.brdf_params = dict(brdf_params)
         #: True-position getters registered by the simulated axes (0 when absent).
         self.axis_truth: dict[str, Callable[[], float]] = {}
+        #: Each simulated axis's zero error (physical minus encoder angle, deg), registered with it.
+        self.axis_zero_deg: dict[str, float] = {}
         sim = config.simulation
         self.lamp = LampPhysics(self.clock, config.lamp.current_a, sim.lamp_exponent,
                                 sim.warmup_amplitude, sim.warmup_tau_s, sim.drift_per_hour)
@@ -45,6 +48,15 @@ class SimWorld:
         self.transmission_truth = {f.position: f.transmission * (1.0 + f.u_rel * e) for f, e in zip(filters, errors)}
         #: The filter-wheel position in the beam, registered by the simulated wheel (None: no wheel).
         self.filter_position: Callable[[], int] | None = None
+        #: The camera's mount on the arm (a rotation applied after camera_frame: pointing x, y, roll) and the
+        #: sample holder's tilt (applied after sample_frame), drawn once per run from an rng of their own, so that
+        #: drawing them leaves every other truth as it was: what `rig calibrate geometry` must find.
+        mount, tilt = np.random.default_rng([sim.seed, 36]).standard_normal((2, 3))
+        #: The same as angles (deg): pointing x, y and roll; tilt about the sample x and y.
+        self.camera_mount_deg = mount * sim.camera_mount_sigma_deg
+        self.holder_tilt_deg = tilt[:2] * sim.holder_tilt_sigma_deg
+        self.camera_mount = rotation_from_vector(np.radians(self.camera_mount_deg))
+        self.holder_tilt = rotation_from_vector(np.radians([*self.holder_tilt_deg, 0.0]))
 
     def spend_s(self, seconds: float) -> None:
         """Let `seconds` of rig time pass inside an instrument (a meter integrating, a camera exposing),
@@ -67,6 +79,11 @@ class SimWorld:
         """True transmission of what is in front of the camera now (1: no wheel, or a position without a
         calibrated filter, i.e. an open one)."""
         return 1.0 if self.filter_position is None else self.transmission_truth.get(self.filter_position(), 1.0)
+
+    def holder_frame(self) -> np.ndarray:
+        """Columns: the sample x, y and normal in the GCS at the true stage angles, the holder's tilt included."""
+        alpha, beta = np.radians(self.motor_angles_deg()[:2])
+        return sample_frame(alpha, beta) @ self.holder_tilt
 
     def motor_angles_deg(self) -> tuple[float, float, float, float]:
         """True axis positions (stage_vertical, stage_normal, arm_azimuth, arm_polar)."""
