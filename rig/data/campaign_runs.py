@@ -62,7 +62,7 @@ def continuous(manifest: Mapping[str, Any]) -> bool:
     return isinstance(manifest.get("runs"), list)
 
 
-def _shifts(manifest: Mapping[str, Any]) -> list[float] | None:
+def rig_time_shifts(manifest: Mapping[str, Any]) -> list[float] | None:
     """What to add to each run's recorded rig times: None for an old dataset (each run is placed after the
     previous one); else the `rig_time_shift_s` of the runs recorded before rig time continued (0 for the others)."""
     if not continuous(manifest):
@@ -75,7 +75,7 @@ def runs_of(manifest: Mapping[str, Any], events: Iterable[Mapping[str, Any]]) ->
 
     A resume whose rig never came up wrote no rig time: it is no run. The runs of an old dataset (no `runs` in
     its manifest) each start where the previous one ended."""
-    shifts = _shifts(manifest)
+    shifts = rig_time_shifts(manifest)
     runs: list[Run] = []
     current: Run | None = None
     shift = reached = 0.0

@@ -33,11 +33,15 @@ from typing import Any
 from rig.monitor import files
 from rig.monitor.records import (
     PlanSummary,
+    RunAxis,
+    WarmupState,
     finite_float,
     plan_of,
     point_record,
+    section,
     short_text,
     summarize_event,
+    text_of,
     utc_seconds,
 )
 from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
@@ -60,17 +64,6 @@ MAX_POINTS = 10 ** 9
 
 class BadLine(Exception):
     """A line of brdf.csv or events.jsonl that cannot be followed: skipped and reported, with this reason."""
-
-
-def _text(value: Any) -> str | None:
-    """A manifest's text field as the page shows it: None unless it is text."""
-    return short_text(value) if isinstance(value, str) else None
-
-
-def _section(manifest: dict[str, Any], key: str) -> dict[str, Any]:
-    """A section of the manifest; {} where it is absent or not an object."""
-    value = manifest.get(key)
-    return value if isinstance(value, dict) else {}
 
 
 class FolderFollower:
@@ -102,6 +95,7 @@ class FolderFollower:
         self.budget_rows: dict[str, dict[str, float]] = {}
         self._budget: list[dict] | None = None
         self.flags: Counter[str] = Counter()
+        self.axis, self.warmup = RunAxis(), WarmupState()      # the campaign's rig-time axis; the lamp's warm-up
         self.phase, self.detail = "starting", ""
         self.aligned = False
         self.rig_time_s: float | None = None
@@ -178,7 +172,7 @@ class FolderFollower:
         except files.FollowError as exc:
             self.manifest_error = f"{self.folder / 'dataset.json'}: {str(exc).partition(': ')[2]}; cannot follow it"
             return
-        run = _text(manifest.get("created_utc"))
+        run = text_of(manifest.get("created_utc"))
         if self._run is not None and run != self._run:
             raise files.Replaced(self.folder / "dataset.json")
         self.manifest, self.manifest_error, self._run = manifest, None, run
@@ -244,7 +238,7 @@ class FolderFollower:
             raise BadLine("point_pending: its row's point_id is not text")
         if kind == "points_discarded" and isinstance(ids, list) and not all(isinstance(p, str) for p in ids):
             raise BadLine("points_discarded: a point id that is not text")
-        rig_s = finite_float(event.get("rig_time_s"))
+        rig_s = self.axis.place(kind, finite_float(event.get("rig_time_s")), self.manifest)
         summary = summarize_event(event) if kind not in QUIET_EVENTS else ""
         if kind == "point_pending" and isinstance(row, dict):
             if row["point_id"] not in self.final:
@@ -258,12 +252,13 @@ class FolderFollower:
                     self.changes.append({"k": "d", "id": pid})
         elif kind == "illuminance":
             self.changes.append({"k": "e", "t": rig_s, "lx": finite_float(event.get("illuminance_normal_lx")),
-                                 "u": finite_float(event.get("u_lx"))})
+                                 "u": finite_float(event.get("u_lx")), "r": self.axis.run})
         elif kind == "adaptive_batch" and isinstance(event.get("points"), list):
             self.batch_points += len(event["points"])      # an adaptive campaign's plan grows batch by batch
         elif kind in ("lamp_on", "warmup_stable", "warmup_not_stable"):
-            self.changes.append({"k": "l", "t": rig_s, "i": finite_float(event.get("current_a")),
+            self.changes.append({"k": "l", "t": rig_s, "i": finite_float(event.get("current_a")), "r": self.axis.run,
                                  "v": finite_float(event.get("voltage_v", event.get("lamp_voltage_v")))})
+        self.warmup.note(kind, event, rig_s, self.changes)
         self._at(event.get("time_utc"), rig_s)
         self._phase(kind, event, rig_s)
         if kind not in QUIET_EVENTS:
@@ -312,7 +307,7 @@ class FolderFollower:
                 self.session_done = self.done
 
     def _aligning(self) -> bool:
-        content = _section(self.manifest, "campaign").get("content")
+        content = section(self.manifest, "campaign").get("content")
         return isinstance(content, dict) and content.get("alignment") is not None and not self.aligned
 
     # -- what the page shows -----------------------------------------------------------------
@@ -339,7 +334,7 @@ class FolderFollower:
         return self.phase, self.detail
 
     def _to_measure(self) -> int | None:
-        counts = _section(self.manifest, "counts")
+        counts = section(self.manifest, "counts")
         planned, skipped = counts.get("planned"), counts.get("skipped")
         if isinstance(planned, int) and isinstance(skipped, int) and 0 <= skipped <= planned <= MAX_POINTS:
             return planned - skipped
@@ -355,6 +350,8 @@ class FolderFollower:
         if self.active_since is not None and self.rig_time_s is not None:
             active += self.rig_time_s - self.active_since
         n = self.done - (self.session_done or 0)
+        if phase in ("starting", "warm-up") and self.plan and self.plan.estimate_s is not None:    # before a point
+            eta["rig_s"] = (self.warmup.state(self.manifest, self.rig_time_s)["left_s"] or 0.0) + self.plan.estimate_s
         if n <= 0 or active <= 0:
             return eta
         eta["rig_s"] = left_s = max(to_measure - self.done, 0) * active / n
@@ -375,20 +372,21 @@ class FolderFollower:
         phase, detail = self.state()
         to_measure = self._to_measure()
         m = self.manifest
-        sample, rig = _section(m, "sample"), _section(m, "rig")
+        sample, rig = section(m, "sample"), section(m, "rig")
         return {
             "folder": str(self.folder), "generation": self.generation, "next": len(self.changes),
             "changes": self.changes[max(since, 0):],
             "now_utc": datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z"),
-            "last_utc": self.last_utc, "created_utc": _text(m.get("created_utc")),
-            "finished_utc": _text(m.get("finished_utc")), "campaign": _text(_section(m, "campaign").get("name")),
-            "sample": _text(sample.get("id")), "sample_description": _text(sample.get("description")),
-            "rig": _text(rig.get("name")), "simulated": rig.get("simulated") if rig.get("simulated") in (True, False)
-            else None, "software": _text(_section(m, "software").get("version")),
-            "status": _text(m.get("status")), "phase": phase, "detail": detail,
+            "last_utc": self.last_utc, "created_utc": text_of(m.get("created_utc")),
+            "finished_utc": text_of(m.get("finished_utc")), "campaign": text_of(section(m, "campaign").get("name")),
+            "sample": text_of(sample.get("id")), "sample_description": text_of(sample.get("description")),
+            "rig": text_of(rig.get("name")), "simulated": rig.get("simulated") if rig.get("simulated") in (True, False)
+            else None, "software": text_of(section(m, "software").get("version")),
+            "status": text_of(m.get("status")), "phase": phase, "detail": detail,
             "progress": {"done": self.done, "to_measure": to_measure, "in_csv": len(self.final),
                          "pending": len(self.pending - self.final), "skipped": sum(self.skipped.values())},
             "rig_time_s": self.rig_time_s, "eta": self._eta(phase, to_measure),
+            "warmup": self.warmup.state(self.manifest, self.rig_time_s) if phase == "warm-up" else None,
             "series": self.plan.series if self.plan else [], "plan_error": self.plan.error if self.plan else None,
             "skipped": [{"reason": r, "count": n, "meaning": describe_reason(r) if r.partition(":")[0] in SKIP_REASONS
                          else ""} for r, n in self.skipped.most_common()],

@@ -14,8 +14,10 @@ import numpy as np
 
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
+from rig.data.campaign_runs import rig_time_shifts
 from rig.physics.geometry import PLANE_TOL_DEG, plane_axes, plane_offsets, sph_to_vec
-from rig.planning.plan import build_plan
+from rig.planning.estimate import NOMINAL_CAPTURE_S
+from rig.planning.plan import build_plan, estimate_rig_time_s
 
 #: Fields of an event left out of its one-line summary (shown apart, or too long).
 SUMMARY_SKIP = frozenset({"event", "time_utc", "rig_time_s", "row", "identities", "readings", "point_ids"})
@@ -23,6 +25,17 @@ SUMMARY_SKIP = frozenset({"event", "time_utc", "rig_time_s", "row", "identities"
 SUMMARY_CHARS = 240
 #: Longest `time_utc` taken as a time (ISO 8601 with microseconds and offset is 32 characters).
 UTC_CHARS = 40
+
+
+def text_of(value: Any) -> str | None:
+    """A manifest's text field as the page shows it: None unless it is text."""
+    return short_text(value) if isinstance(value, str) else None
+
+
+def section(manifest: dict[str, Any], key: str) -> dict[str, Any]:
+    """A section of the manifest; {} where it is absent or not an object."""
+    value = manifest.get(key)
+    return value if isinstance(value, dict) else {}
 
 
 def finite_float(value: Any) -> float | None:
@@ -88,6 +101,7 @@ class PlanSummary:
     to_measure: int | None = None
     series: list[dict[str, Any]] = field(default_factory=list)
     error: str | None = None
+    estimate_s: float | None = None             # rig time of its points (moves and nominal captures)
 
 
 def plan_of(manifest: dict[str, Any]) -> PlanSummary:
@@ -101,4 +115,62 @@ def plan_of(manifest: dict[str, Any]) -> PlanSummary:
         return PlanSummary(error=f"no plan from the manifest ({str(exc).splitlines()[0][:200]})")
     per_series = Counter(p.series for p in plan.points)
     return PlanSummary(len(plan.points), [{"index": s.index, "theta_i_deg": s.theta_i_deg, "phi_i_deg": s.phi_i_deg,
-                                     "to_measure": per_series[s.index]} for s in plan.series])
+                                     "to_measure": per_series[s.index]} for s in plan.series],
+                       estimate_s=estimate_rig_time_s(plan, rig.axes, NOMINAL_CAPTURE_S))
+
+
+class RunAxis:
+    """Places each event on the campaign's rig-time axis and says which run wrote it (rig.data.campaign_runs):
+    a run starts at the first event with a rig time after a `resume`; the rig times of a dataset written before
+    rig time continued restarted at 0 there, and are shifted to follow the previous run."""
+
+    def __init__(self) -> None:
+        self.run, self.shift, self.reached = 0, 0.0, 0.0
+        self._seen = self._resumed = False
+
+    def place(self, kind: str, rig_s: float | None, manifest: dict[str, Any]) -> float | None:
+        """`rig_s` of an event of `kind` on the campaign's axis (None stays None)."""
+        if kind == "resume":
+            self._resumed = True
+        if rig_s is None:
+            return None
+        if self._resumed and self._seen:
+            self.run += 1
+            shifts = rig_time_shifts(manifest)
+            self.shift = self.reached if shifts is None else (shifts[self.run] if self.run < len(shifts) else 0.0)
+        self._seen, self._resumed = True, False
+        self.reached = max(self.reached, rig_s + self.shift)
+        return rig_s + self.shift
+
+
+class WarmupState:
+    """The lamp's warm-up as its events tell it (rig.acquisition.warmup): when the lamp went on, the last check's
+    reading and change, the rest expected; the manifest's run record gives the warm-up expected in all."""
+
+    def __init__(self) -> None:
+        self.on_s: float | None = None
+        self.last: dict[str, Any] | None = None
+
+    def note(self, kind: str, event: dict[str, Any], rig_s: float | None, changes: list[dict[str, Any]]) -> None:
+        if kind == "lamp_on":
+            self.on_s, self.last = rig_s, None
+        elif kind == "warmup_check":
+            self.last = {"t": rig_s, "lx": finite_float(event.get("illuminance_lx")),
+                         "change": finite_float(event.get("change_rel")),
+                         "stable_below": finite_float(event.get("stable_rel")),
+                         "left_s": finite_float(event.get("expected_left_s"))}
+            changes.append({"k": "w", **self.last})
+
+    def state(self, manifest: dict[str, Any], rig_time_s: float | None) -> dict[str, Any]:
+        """What the page says of the warm-up: expected (s, source), elapsed and the rest, the last check."""
+        runs = manifest.get("runs")
+        expected = section(runs[-1], "expected_warmup") if isinstance(runs, list) and runs and \
+            isinstance(runs[-1], dict) else {}
+        seconds = finite_float(expected.get("seconds"))
+        elapsed = rig_time_s - self.on_s if rig_time_s is not None and self.on_s is not None else None
+        left = self.last["left_s"] if self.last else (
+            max(seconds - elapsed, 0.0) if seconds is not None and elapsed is not None else None)
+        if self.last and left is not None and self.last["t"] is not None and rig_time_s is not None:
+            left = max(left - (rig_time_s - self.last["t"]), 0.0)
+        return {"expected_s": seconds, "source": text_of(expected.get("source")), "elapsed_s": elapsed,
+                "left_s": left, "last": self.last}

@@ -111,12 +111,12 @@ def test_a_run_is_followed_line_by_line(tmp_path):
     s = f.look(s["next"])
     assert s["phase"] == "warm-up"
     assert [c["k"] for c in s["changes"]] == ["ev", "l", "ev"]         # only what is new since the last look
-    assert s["changes"][1] == {"k": "l", "t": 5.0, "i": 4.17, "v": 11.6}
+    assert s["changes"][1] == {"k": "l", "t": 5.0, "i": 4.17, "v": 11.6, "r": 0}
     f.event("warmup_stable", 100.0, illuminance_lx=5000.0, change_rel=0.001, warmup_s=95.0, lamp_voltage_v=12.0)
     f.event("illuminance", 101.0, illuminance_normal_lx=4990.0, u_lx=4.0, readings=5)
     s = f.look(s["next"])
     assert s["phase"] == "measuring"
-    assert {"k": "e", "t": 101.0, "lx": 4990.0, "u": 4.0} in s["changes"]
+    assert {"k": "e", "t": 101.0, "lx": 4990.0, "u": 4.0, "r": 0} in s["changes"]
     f.pending("01-000", 110.0)
     s = f.look(s["next"])
     assert s["progress"]["done"] == 1 and s["progress"]["pending"] == 1 and s["progress"]["in_csv"] == 0
