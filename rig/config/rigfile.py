@@ -18,11 +18,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any
 
+import numpy as np
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
 from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
+from rig.config.geometry_calibration import GeometryCalibrationSummary, summary
 from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, AttenuatorDevice, DevicesConfig
 from rig.config.stated_u import unstated_u
 from rig.config.strict import StrictModel
@@ -82,6 +84,12 @@ class GeometryConfig(StrictModel):
     #: resolution and interpolation error): what is left once a campaign's `alignment` has measured the
     #: fixed zero errors (rig.physics.budget.lobe_view_u_deg).
     readback_u_deg: float = Field(0.002, ge=0, le=10)
+    #: What `rig calibrate geometry` wrote (relative to the rig file, docs/geometry-calibration.md): its axis zero
+    #: offsets are applied to every move and read-back, and `angle_u_deg` comes from its uncertainty.
+    calibration_file: Annotated[str, StringConstraints(min_length=1, max_length=1000),
+                                AfterValidator(printable)] | None = None
+    #: Filled from `calibration_file` when the rig file is loaded (load_rig_config); not typed in a rig file.
+    calibration: GeometryCalibrationSummary | None = None
 
     @model_validator(mode="after")
     def _readback_within_angle_u(self):
@@ -215,6 +223,11 @@ class SimulationConfig(StrictModel):
     #: Std of each axis's fixed zero error (zero calibration, sample mounting), drawn once per run: the
     #: encoders read the physical angle minus it, so it is what `geometry.angle_u_deg` must cover.
     axis_zero_sigma_deg: float = Field(0.01, ge=0, le=10)
+    #: Std of the camera's mount about each of its axes (pointing x, y and roll about the optical axis) and of
+    #: the sample holder's tilt about the sample x and y axes, drawn once per run: truths for `rig calibrate
+    #: geometry` (docs/geometry-calibration.md) beside the axes' zero errors.
+    camera_mount_sigma_deg: float = Field(0.0, ge=0, le=10)
+    holder_tilt_sigma_deg: float = Field(0.0, ge=0, le=10)
     ambient_cd_m2: float = Field(0.0, ge=0, le=1e6)              # stray light on unlit parts
     #: Relative shortfall β of the charge conversion near zero signal, none at full well
     #: (rig.simulators.sensor.convert_nonlinear): a nonlinearity for `rig calibrate camera` to find.
@@ -378,6 +391,7 @@ def load_rig_config(path: str | Path) -> RigConfig:
             update[name] = entry.model_copy(update={"map": str(folder / entry.map)})
     if update:
         config = config.model_copy(update={"devices": config.devices.model_copy(update=update)})
+    config = _with_geometry_calibration(config, path)
     cal = config.camera.calibration_file
     if cal is None:
         return config
@@ -387,6 +401,26 @@ def load_rig_config(path: str | Path) -> RigConfig:
     except ConfigFileError as exc:
         raise RigConfigError(f"{path}: key 'camera.calibration_file': {exc}") from None
     return config.model_copy(update={"camera": camera})
+
+
+def _with_geometry_calibration(config: RigConfig, path: str | Path) -> RigConfig:
+    """The rig with `geometry.calibration` read from `geometry.calibration_file` (relative to the rig file) and
+    `geometry.angle_u_deg` from its uncertainty, whatever the file typed: the largest zero offset's u with the
+    read-back's, which varies from one position to the next (rig.physics.budget)."""
+    geometry = config.geometry
+    if geometry.calibration_file is None:
+        if geometry.calibration is not None:
+            raise RigConfigError(f"{path}: key 'geometry.calibration' is written by rig from "
+                                 "'geometry.calibration_file'; give that key instead")
+        return config
+    file = str(Path(path).parent / geometry.calibration_file)
+    try:
+        found = summary(file)
+    except ConfigFileError as exc:
+        raise RigConfigError(f"{path}: key 'geometry.calibration_file': {exc}") from None
+    angle_u = float(np.hypot(max(found.zero_u_deg), geometry.readback_u_deg))
+    return config.model_copy(update={"geometry": geometry.model_copy(update={
+        "calibration_file": file, "calibration": found, "angle_u_deg": angle_u})})
 
 
 def simulated_rig() -> RigConfig:

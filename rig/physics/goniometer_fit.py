@@ -24,8 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-
 from rig.physics.geometry import camera_frame, camera_unit, rotation_matrix, sample_frame
 
 #: The fitted parameters, in the order of `GoniometerFit.values`; angles in degrees, lengths in metres, the
@@ -242,6 +240,8 @@ def _check_counts(boards: list[BoardView], lamps: list[LampView]) -> None:
 
 def _solve(problem: _Problem, start: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     """Least squares, twice: with nominal weights, then with each group's own scatter."""
+    from scipy.optimize import least_squares     # here: rig files name this module's PARAMETERS, and load fast
+
     _check_counts(problem.boards, problem.lamps)
     sigmas = (0.1, 0.05)
     values = start
