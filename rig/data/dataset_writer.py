@@ -43,6 +43,7 @@ from rig.data.output_folder import (
     format_bytes,
     require_new_output,
 )
+from rig.physics.budget import mark_not_stated, not_stated
 
 #: errno values of a full disk or an exhausted quota.
 DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
@@ -311,7 +312,10 @@ class DatasetWriter:
 
     def update_manifest(self, **changes: Any) -> None:
         """Replace dataset.json with the changes; on a full disk the reserve is freed to make room
-        for it, so the manifest can still say how the run ended."""
+        for it, so the manifest can still say how the run ended. An uncertainty budget names there the
+        calibrations whose u the rig file did not state (rig.physics.budget.mark_not_stated)."""
+        if "uncertainty_budget" in changes:
+            changes["uncertainty_budget"] = mark_not_stated(changes["uncertainty_budget"], not_stated(self.manifest))
         self.manifest.update(changes)
         path = self.dir / "dataset.json"
 

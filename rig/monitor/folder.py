@@ -44,7 +44,7 @@ from rig.monitor.records import (
     text_of,
     utc_seconds,
 )
-from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
+from rig.physics.budget import BUDGET_COLUMNS, campaign_budget, mark_not_stated, not_stated
 from rig.planning.points import SKIP_REASONS, describe_reason
 
 #: The run's phase after an event of these kinds (docs/dataset.md, events.jsonl); other kinds leave it.
@@ -361,10 +361,12 @@ class FolderFollower:
         return {k: finite_float(v) for k, v in eta.items()}       # absurd times written: no ETA, never inf
 
     def budget(self) -> list[dict]:
-        """The uncertainty budget of the points so far (rig.physics.budget, as the manifest has it at the end)."""
+        """The uncertainty budget of the points so far (rig.physics.budget, as the manifest has it at the end),
+        naming the calibrations whose u the rig file did not state."""
         if self._budget is None:
+            table = campaign_budget(list(self.budget_rows.values()), BUDGET_COLUMNS)
             self._budget = [{k: finite_float(v) if isinstance(v, float) else v for k, v in component.items()}
-                            for component in campaign_budget(list(self.budget_rows.values()), BUDGET_COLUMNS)]
+                            for component in mark_not_stated(table, not_stated(self.manifest))]
         return self._budget
 
     def snapshot(self, since: int = 0) -> dict[str, Any]:

@@ -128,6 +128,28 @@ def campaign_budget(rows: Sequence[Mapping[str, float]], columns: Mapping[str, s
     return sorted(table, key=lambda row: -row["median_share_of_variance"])
 
 
+#: The budget component each calibration key of a rig file feeds (rig.config.stated_u).
+NOT_STATED_COMPONENT = {"camera.calibration_u_rel": "u_rel_calibration",
+                        "meter.calibration_u_rel": "u_rel_meter_calibration", "attenuator.filters": "u_rel_attenuation"}
+
+
+def not_stated(manifest: Mapping) -> tuple[str, ...]:
+    """The calibration u the run's rig file did not state (its `uncertainty_not_stated`, in the manifest)."""
+    rig = manifest.get("rig")
+    config = rig.get("config") if isinstance(rig, Mapping) else None
+    keys = config.get("uncertainty_not_stated") if isinstance(config, Mapping) else None
+    return tuple(str(k) for k in keys) if isinstance(keys, list | tuple) else ()
+
+
+def mark_not_stated(table: list[dict], keys: Sequence[str]) -> list[dict]:
+    """The campaign budget with NOT_STATED in the meaning of each component a rig file left without its u
+    (used as 0: a silent 0 would pass for an exact calibration)."""
+    components = {NOT_STATED_COMPONENT[k.partition("[")[0]]: k for k in keys if k.partition("[")[0] in
+                  NOT_STATED_COMPONENT}
+    return [{**row, "meaning": f"{row['meaning']} — {NOT_STATED} ({components[row['component']]})"}
+            if row["component"] in components else row for row in table]
+
+
 def _number(value: object) -> float:
     """A budget cell as a float; NaN where it is empty or missing."""
     try:

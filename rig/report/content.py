@@ -16,7 +16,7 @@ from rig import __version__
 from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, complete_lines
-from rig.physics.budget import BUDGET_COLUMNS, campaign_budget
+from rig.physics.budget import BUDGET_COLUMNS, NOT_STATED, campaign_budget, mark_not_stated, not_stated
 
 #: Events of events.jsonl that record a fault the run survived (docs/dataset.md), in the report's order.
 FAULT_EVENTS = ("retry", "reconnect", "reconnect_failed", "points_discarded", "device_errors", "warning",
@@ -240,7 +240,20 @@ def budget(ds: Dataset) -> list[BudgetRow]:
     table = np.column_stack([ds[c] for c in present])
     rows = [dict(zip(present, r)) for r in table[np.all(np.isfinite(table), axis=1)].tolist()]
     return [BudgetRow(b["component"], b["meaning"], b["median_u_rel"], b["p95_u_rel"], b["median_share_of_variance"])
-            for b in campaign_budget(rows, present)]
+            for b in mark_not_stated(campaign_budget(rows, present), not_stated(ds.manifest))]
+
+
+def u_parts(ds: Dataset) -> list[tuple[str, str]]:
+    """The two parts of u(f_r) (rig.physics.budget.SPLIT_COLUMNS), median relative over the points: what
+    scatters the points about the truth, and the calibrations that move them all together."""
+    f = ds["brdf_per_sr"]
+    rows = []
+    for column, label in (("u_brdf_point_per_sr", "u(f_r), point-to-point part (median, rel.)"),
+                          ("u_brdf_correlated_per_sr", "u(f_r), correlated calibrations (median, rel.)")):
+        u = ds[column] if column in ds.columns else np.full(f.shape, np.nan)
+        ok = np.isfinite(u) & (f > 0)
+        rows.append((label, _percent(float(np.median(u[ok] / f[ok]))) if np.any(ok) else "–"))
+    return rows
 
 
 def median_u_rel(ds: Dataset) -> float | None:
@@ -254,9 +267,9 @@ def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
     config = _part(_part(manifest, "rig"), "config")
     camera, meter, geometry = (_part(config, k) for k in ("camera", "meter", "geometry"))
     rows = [("Camera calibration file", str(camera.get("calibration_file") or "none (sensor model)")),
-            ("Camera calibration u (rel.)", _percent(camera.get("calibration_u_rel"))),
+            ("Camera calibration u (rel.)", _stated(manifest, "camera.calibration_u_rel", camera)),
             ("Meter calibration", f"{_sig(meter.get('calibration_lx_per_a'))} lx/A"),
-            ("Meter calibration u (rel.)", _percent(meter.get("calibration_u_rel"))),
+            ("Meter calibration u (rel.)", _stated(manifest, "meter.calibration_u_rel", meter)),
             ("Meter repeatability (rel.)", _percent(meter.get("repeatability_rel"))),
             ("Lamp distance", f"{_sig(geometry.get('lamp_distance_m'))} m"),
             ("Camera distance", f"{_sig(geometry.get('camera_distance_m'))} m"),
@@ -272,6 +285,11 @@ def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
     if "view_half_angle_deg" in footprint:
         rows.append(("View footprint (half-angle)", f"{_sig(footprint['view_half_angle_deg'])}°"))
     return rows
+
+
+def _stated(manifest: Mapping, key: str, section: Mapping) -> str:
+    """A calibration's u as the rig file stated it, or NOT_STATED (it is used as 0)."""
+    return NOT_STATED if key in not_stated(manifest) else _percent(section.get(key.rpartition(".")[2]))
 
 
 def _part(record: Mapping, key: str) -> Mapping:
@@ -341,7 +359,7 @@ def collect(ds: Dataset, fit: Mapping | None = None, road: Mapping | None = None
         software_version=str(software.get("version") or "–"), report_version=__version__,
         rig_name=str(rig.get("name") or "–"), simulated=bool(rig.get("simulated")),
         identities={str(k): str(v) for k, v in _part(rig, "identities").items()},
-        calibrations=_calibrations(m),
+        calibrations=_calibrations(m) + u_parts(ds),
         filters=[dict(f) for f in (filters if isinstance(filters, list) else []) if isinstance(f, Mapping)],
         series=_series(ds), counts=counts(ds), conditions=conditions(events, m), budget=budget(ds),
         median_u_rel=median_u_rel(ds),
