@@ -1,7 +1,7 @@
 """`rig plot`: PNG figures of a dataset, optionally with a fitted model (matplotlib, Agg, no pyplot state).
 
 Per incidence series:
-- `plane_sNN_tiXX.png` (like Spieringhs et al. 2023 Fig. 7): f_r in the plane of
+- `plane_sNN_tiXX_piYYY.png` (series NN at θi XX°, φi YYY°; like Spieringhs et al. 2023 Fig. 7): f_r in the plane of
   incidence against the signed viewing angle, positive on the lamp side (the
   retroreflection hemisphere), negative on the specular side; a polar panel
   (radius ∝ f_r, linear) and a Cartesian one (log f_r) with ± u error bars, the
@@ -10,12 +10,12 @@ Per incidence series:
   `PLANE_TOL_DEG` of it (angular distance of ωo from the plane); it is drawn at
   its projection onto the plane. At normal incidence (θi < 1°) the plane is the
   x–z plane (φ = 0°/180°).
-- `lobe_sNN_tiXX.png` (like Figs. 6/9): the 3D lobe, each measured point at
+- `lobe_sNN_tiXX_piYYY.png` (like Figs. 6/9): the 3D lobe, each measured point at
   f_r·ωo, the incident vector toward the lamp, the mirror direction, and the
   fitted surface f_fit(ωo)·ωo over the hemisphere.
 With a fit (`{"model", "params", "metrics"?}` as `rig fit --json` writes):
 - `fit_residuals.png`: fitted against measured f_r (log–log) and the relative
-  residual against θo, per series.
+  residual against θo, every series (colour = θi on a colour scale, marker = φi; keys outside the data).
 """
 
 from __future__ import annotations
@@ -25,7 +25,11 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from rig.data.dataset_format import DatasetError
@@ -42,6 +46,9 @@ from rig.physics.geometry import (
 )
 
 DPI = 110
+#: The 3D lobe is seen from this far off the plane of incidence (degrees of azimuth): seen along the plane, one axis
+#: is edge-on and its tick labels pile up.
+LOBE_VIEW_OFF_PLANE_DEG = 55.0
 MEASURED, FITTED, LAMP = "#1f77b4", "#d62728", "#ff7f0e"
 RETRO_SHADE, SPECULAR_SHADE = "#fdd9b5", "#d6e6f5"
 RETRO_TEXT, SPECULAR_TEXT = "#a0522d", "#2f5f8f"
@@ -56,7 +63,12 @@ def _record_model(fit: Mapping) -> Model:
 
 
 def _series_label(theta_i: float, phi_i: float) -> str:
-    return f"θi = {theta_i:.1f}°, φi = {phi_i:.1f}°"
+    return f"θi = {theta_i:.1f}°, φi = {round(phi_i, 1) % 360:.1f}°"
+
+
+def series_stem(series: int, theta_i: float, phi_i: float) -> str:
+    """The figures' file-name stem of a series: its number, θi and φi (two series at one θi differ by φi)."""
+    return f"s{series:02d}_ti{theta_i:02.0f}_pi{round(phi_i) % 360:03d}"
 
 
 def _plane_curve(model: Model, wi: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,7 +111,7 @@ def _draw_polar(ax, signed, f, u, curve, theta_i) -> None:
     ax.text(np.radians(45), 1.2 * r_max, "retro side", ha="left", color=RETRO_TEXT)
     ax.text(np.radians(-45), 1.2 * r_max, "specular side", ha="right", color=SPECULAR_TEXT)
     ax.set_xlabel("radius: f_r [sr⁻¹] (linear); angle: viewing angle in the plane [deg]", labelpad=-40)
-    ax.figure.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.9), fontsize=8)
+    ax.figure.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.9), fontsize=9)
 
 
 def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
@@ -123,7 +135,7 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
     ax.text(0.25, 1.01, "specular hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=SPECULAR_TEXT)
     ax.text(0.75, 1.01, "retro hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=RETRO_TEXT)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="best", fontsize=9)
 
 
 def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
@@ -156,8 +168,10 @@ def _hemisphere_surface(model: Model, wi: np.ndarray) -> np.ndarray:
     return model(wi, wo)[..., None] * wo
 
 
-def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -> Path:
-    """3D lobe of one series: measured f_r·ωo, incident vector, fitted surface (module docstring)."""
+def lobe_figure(ds: Dataset, series: int, model: Model | None = None) -> Figure:
+    """3D lobe of one series: measured f_r·ωo, incident vector, fitted surface (module docstring). Seen from 60°
+    off the plane of incidence, so that all three axes show their ticks; a few ticks per axis, none at the box's
+    corners, the axis titles padded clear of them."""
     theta_i, phi_i = ds.series_incidence_deg(series)
     rows = ds["series"] == series
     _, wo = ds.directions()
@@ -166,15 +180,15 @@ def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -
     wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
     surface = _hemisphere_surface(model, wi) if model else None
     reach = 1.15 * max(np.max(np.abs(pts)), np.max(np.abs(surface)) if surface is not None else 0.0)
-    fig = Figure(figsize=(9, 7.5))
-    ax = fig.add_subplot(projection="3d")
+    fig = Figure(figsize=(10, 7.5))
+    ax = fig.add_axes((0.0, 0.02, 0.78, 0.84), projection="3d")
     if surface is not None:
         ax.plot_surface(*np.moveaxis(surface, -1, 0), color=FITTED, alpha=0.18, lw=0.3, edgecolor="#e8a0a0",
                         rstride=3, cstride=3)
         ax.plot([], [], color=FITTED, lw=4, alpha=0.4, label="fit f_fit(ωo)·ωo")
-    sc = ax.scatter(*pts.T, c=f, cmap="viridis", s=14, depthshade=False, label="measured f_r·ωo")
+    sc = ax.scatter(*pts.T, c=f, cmap="viridis", s=16, depthshade=False, label="measured f_r·ωo")
     ax.quiver(0, 0, 0, *(reach * wi), color=LAMP, lw=1.5, alpha=0.7, arrow_length_ratio=0.06)
-    ax.text(*(1.08 * reach * wi), "ωi (lamp)", color=LAMP, fontsize=10)
+    ax.text(*(1.08 * reach * wi), "ωi (lamp)", color=LAMP, fontsize=11)
     ax.plot(*np.stack([np.zeros(3), reach * mirror_direction(wi)]).T, color=SPECULAR_TEXT, ls="--", lw=1.2,
             label="mirror direction")
     ring = np.radians(np.linspace(0, 360, 181))
@@ -183,15 +197,23 @@ def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -
     ax.set_xlim(-reach, reach)
     ax.set_ylim(-reach, reach)
     ax.set_zlim(0, reach)
-    ax.set_box_aspect((2, 2, 1))
-    ax.view_init(elev=25, azim=(phi_i if theta_i >= NORMAL_INCIDENCE_DEG else 0.0) - 90)
-    for setter, axis in ((ax.set_xlabel, "x"), (ax.set_ylabel, "y"), (ax.set_zlabel, "z")):
-        setter(f"{axis}·f_r [sr⁻¹]")
-    fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.08, label="measured f_r [sr⁻¹]")
-    ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(f"{ds.sample_id()} — BRDF lobe, {_series_label(theta_i, phi_i)} ({rows.sum()} points)\n"
-                 "radius ∝ f_r in the viewing direction", fontsize=11)
-    fig.savefig(out, dpi=DPI, bbox_inches="tight")
+    ax.set_box_aspect((2, 2, 1.1))
+    ax.view_init(elev=25, azim=(phi_i if theta_i >= NORMAL_INCIDENCE_DEG else 0.0) - LOBE_VIEW_OFF_PLANE_DEG)
+    for axis, name, prune in ((ax.xaxis, "x", "both"), (ax.yaxis, "y", "both"), (ax.zaxis, "z", "lower")):
+        axis.set_major_locator(MaxNLocator(4, prune=prune))          # no tick at the box's corners, where they meet
+        axis.set_tick_params(labelsize=9, pad=1)
+        axis.set_label_text(f"{name}·f_r [sr⁻¹]", fontsize=10)
+        axis.labelpad = 20
+    fig.colorbar(sc, cax=fig.add_axes((0.84, 0.2, 0.025, 0.55)), label="measured f_r [sr⁻¹]")
+    fig.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.01, 0.88), fontsize=9)
+    fig.suptitle(f"{ds.sample_id()} — BRDF lobe, {_series_label(theta_i, phi_i)} ({rows.sum()} points)\n"
+                 "radius ∝ f_r in the viewing direction", fontsize=12)
+    return fig
+
+
+def plot_lobe(ds: Dataset, series: int, out: Path, model: Model | None = None) -> Path:
+    """The lobe figure of one series, as a PNG."""
+    lobe_figure(ds, series, model).savefig(out, dpi=DPI, bbox_inches="tight")
     return out
 
 
@@ -202,34 +224,58 @@ def _fit_title(fit: Mapping) -> str:
     return f"fit {fit['model']}: {params}" + (f"\n{shown}" if shown else "")
 
 
-def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
-    """Fitted vs measured f_r and relative residuals vs θo, per series."""
+#: Marker per incidence azimuth φi in the residual figure (colour: θi, on a colour scale).
+PHI_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
+
+
+def residual_figure(ds: Dataset, fit: Mapping) -> Figure:
+    """Fitted vs measured f_r and relative residuals vs θo, every series: colour = θi on a colour scale, marker =
+    φi, so that sixteen series stay apart; the keys (colour bar, marker legend) sit outside the data."""
     model = _record_model(fit)
     wi, wo = ds.directions()
     f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
     f_fit = model(wi, wo)
-    fig = Figure(figsize=(13, 5.6))
-    ax_fit, ax_res = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-    for s in np.unique(ds["series"]).astype(int):
+    incidences = {int(s): ds.series_incidence_deg(int(s)) for s in np.unique(ds["series"])}
+    thetas = [t for t, _ in incidences.values()]
+    norm = Normalize(min(thetas), max(max(thetas), min(thetas) + 1.0))
+    cmap = colormaps["plasma_r"].resampled(256)
+    phis = sorted({round(p, 1) % 360 for _, p in incidences.values()})
+    fig = Figure(figsize=(13, 6.0))
+    ax_fit, ax_res = fig.add_axes((0.08, 0.24, 0.36, 0.6)), fig.add_axes((0.525, 0.24, 0.36, 0.6))
+    residual = 100 * (f - f_fit) / f_fit
+    for s, (theta_i, phi_i) in incidences.items():
         rows = ds["series"] == s
-        label = _series_label(*ds.series_incidence_deg(s))
-        ax_fit.errorbar(f[rows], f_fit[rows], xerr=u[rows], fmt="o", ms=4, capsize=2, label=label)
-        ax_res.errorbar(ds["theta_o_deg"][rows], 100 * (f[rows] - f_fit[rows]) / f_fit[rows],
-                        yerr=100 * u[rows] / f_fit[rows], fmt="o", ms=4, capsize=2, label=label)
+        style = {"marker": PHI_MARKERS[phis.index(round(phi_i, 1) % 360) % len(PHI_MARKERS)], "s": 22,
+                 "color": cmap(norm(theta_i)), "edgecolors": "k", "linewidths": 0.3, "zorder": 3}
+        bars = rows & _stated(u)
+        ax_fit.errorbar(f[bars], f_fit[bars], xerr=u[bars], fmt="none", ecolor="0.65", lw=0.8, zorder=2)
+        ax_res.errorbar(ds["theta_o_deg"][bars], residual[bars], yerr=100 * u[bars] / f_fit[bars], fmt="none",
+                        ecolor="0.65", lw=0.8, zorder=2)
+        ax_fit.scatter(f[rows], f_fit[rows], **style)
+        ax_res.scatter(ds["theta_o_deg"][rows], residual[rows], **style)
     both = np.concatenate([f, f_fit])
     lims = (0.7 * both[both > 0].min(), 1.4 * both.max())
-    ax_fit.plot(lims, lims, color="0.3", lw=1, ls="--", label="fitted = measured")
+    ax_fit.plot(lims, lims, color="0.3", lw=1, ls="--")
     ax_fit.set(xscale="log", yscale="log", xlim=lims, ylim=lims, xlabel="measured f_r [sr⁻¹]",
-               ylabel="fitted f_r [sr⁻¹]", title="fitted against measured (± u)")
+               ylabel="fitted f_r [sr⁻¹]", title="fitted against measured (± u); dashed: equal")
     ax_res.axhline(0, color="0.3", lw=1)
     ax_res.set(xlabel="viewing angle θo [deg]", ylabel="(measured − fitted) / fitted [%]",
                title="relative residual against θo (± u)", xlim=(0, 90))
     for ax in (ax_fit, ax_res):
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.suptitle(f"{ds.sample_id()} — {_fit_title(fit)}", fontsize=11)
-    fig.subplots_adjust(left=0.075, right=0.98, bottom=0.1, top=0.85, wspace=0.22)
-    fig.savefig(out, dpi=DPI)
+    fig.colorbar(ScalarMappable(norm, cmap), cax=fig.add_axes((0.9, 0.24, 0.015, 0.6)),
+                 label="incidence θi [deg]")
+    keys = [Line2D([], [], ls="none", marker=PHI_MARKERS[k % len(PHI_MARKERS)], color="0.35", markersize=7,
+                   label=f"φi = {p:.1f}°") for k, p in enumerate(phis)]
+    fig.legend(handles=keys, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(keys), 6), fontsize=10,
+               title="marker: incidence azimuth (colour: θi)", title_fontsize=10)
+    fig.suptitle(f"{ds.sample_id()} — {_fit_title(fit)}", fontsize=12)
+    return fig
+
+
+def plot_residuals(ds: Dataset, fit: Mapping, out: Path) -> Path:
+    """The residual figure, as a PNG."""
+    residual_figure(ds, fit).savefig(out, dpi=DPI)
     return out
 
 
@@ -250,8 +296,7 @@ def plot_dataset(dataset: Dataset | str | os.PathLike, out_dir: str | os.PathLik
     paths = []
     with new_folder(out_dir) as folder:
         for s in np.unique(ds["series"]).astype(int):
-            theta_i = ds.series_incidence_deg(s)[0]
-            stem = f"s{s:02d}_ti{theta_i:02.0f}"
+            stem = series_stem(s, *ds.series_incidence_deg(s))
             paths.append(plot_plane(ds, s, folder / f"plane_{stem}.png", model, plane_tol_deg))
             paths.append(plot_lobe(ds, s, folder / f"lobe_{stem}.png", model))
         if fit is not None:

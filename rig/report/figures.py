@@ -24,8 +24,8 @@ from rig.analysis.plots import DPI, MEASURED, plot_dataset
 from rig.data.dataset_reader import Dataset
 from rig.report.content import IlluminanceTrend
 
-#: rig plot's file names: kind, series and incidence (rig.analysis.plots.plot_dataset).
-PLOT_NAME = re.compile(r"(?P<kind>plane|lobe)_s(?P<series>\d+)_ti\d+\.png")
+#: rig plot's file names: kind, series and incidence θi, φi (rig.analysis.plots.series_stem).
+PLOT_NAME = re.compile(r"(?P<kind>plane|lobe)_s(?P<series>\d+)_ti\d+_pi\d+\.png")
 #: Polar panels per row in the map of all views.
 POLAR_COLUMNS = 3
 
@@ -72,14 +72,17 @@ def series_figures(ds: Dataset, fit: Mapping | None) -> SeriesFigures:
     return SeriesFigures(plane, lobe, residuals)
 
 
-def polar_map(ds: Dataset) -> Embedded:
+def polar_map_figure(ds: Dataset) -> Figure:
     """Every measured view of each series on a polar map (angle φo, radius θo), colour = f_r (log where all are
-    positive): where the campaign looked, and where the lobes are."""
+    positive): where the campaign looked, and where the lobes are. Laid out by matplotlib's constrained layout, so
+    that a panel's azimuth labels keep clear of its neighbour's; azimuth labels every 90° and radial ones at 30° and
+    60° only (the rim is the horizon), so that no "90°" names both θo and φo."""
     series = np.unique(ds["series"]).astype(int)
     rows = int(np.ceil(len(series) / POLAR_COLUMNS))
     f = ds["brdf_per_sr"]
     norm = LogNorm(f.min(), f.max()) if f.size and np.all(f > 0) else Normalize(f.min(), f.max())
-    fig = Figure(figsize=(3.6 * POLAR_COLUMNS, 3.5 * rows + 0.4))
+    fig = Figure(figsize=(3.4 * POLAR_COLUMNS + 1.2, 3.3 * rows + 0.6), layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.12, h_pad=0.1, wspace=0.08, hspace=0.06)
     axes = [cast(PolarAxes, fig.add_subplot(rows, POLAR_COLUMNS, k + 1, projection="polar"))
             for k in range(len(series))]
     dots = None
@@ -88,17 +91,23 @@ def polar_map(ds: Dataset) -> Embedded:
         theta_i, phi_i = ds.series_incidence_deg(s)
         dots = ax.scatter(np.radians(ds["phi_o_deg"][keep]), ds["theta_o_deg"][keep], c=f[keep], norm=norm,
                           cmap="viridis", s=16, edgecolors="k", linewidths=0.3)
-        ax.plot([np.radians(phi_i)], [theta_i], marker="*", ms=12, color="#ff7f0e", ls="none")
+        ax.plot([np.radians(phi_i)], [theta_i], marker="*", ms=13, color="#ff7f0e", mec="k", mew=0.5, ls="none")
         ax.set_ylim(0, 90)
-        ax.set_rlabel_position(200)        # radial labels away from the lamp side and the φ labels
-        ax.set_yticks([30, 60, 90])
-        ax.set_yticklabels(["30°", "60°", "90°"], fontsize=7)
-        ax.tick_params(axis="x", labelsize=7)
-        ax.set_title(f"series {s}: θi {theta_i:.1f}°, φi {round(phi_i, 1) % 360:.1f}°", fontsize=9)
+        ax.set_rlabel_position(135)        # radial labels between the azimuth labels, away from 0° (the lamp side)
+        ax.set_yticks([30, 60, 90], ["30°", "60°", ""], fontsize=8, color="0.3")
+        ax.set_xticks(np.radians([0, 90, 180, 270]), ["0°", "90°", "180°", "270°"], fontsize=9)
+        ax.tick_params(axis="x", pad=1)
+        ax.set_title(f"series {s}: θi {theta_i:.1f}°, φi {round(phi_i, 1) % 360:.1f}°", fontsize=10)
     if dots is not None:
-        fig.colorbar(dots, ax=axes, shrink=0.8, label="f_r [sr⁻¹]")
-    fig.suptitle("Measured views: angle φo, radius θo; ★ the lamp's direction (θi, φi)", fontsize=10)
-    return Embedded(_figure_uri(fig), "polar map of the measured views of every series")
+        fig.colorbar(dots, ax=axes, shrink=0.9 if rows < 3 else 0.45, aspect=25, label="f_r [sr⁻¹]")
+    fig.suptitle("Measured views: angle φo, radius θo (rings at 30° and 60°, rim at 90°); "
+                 "★ the lamp's direction (θi, φi)", fontsize=11)
+    return fig
+
+
+def polar_map(ds: Dataset) -> Embedded:
+    """The polar map of `polar_map_figure`, embedded."""
+    return Embedded(_figure_uri(polar_map_figure(ds)), "polar map of the measured views of every series")
 
 
 def illuminance_figure(trend: IlluminanceTrend) -> Embedded | None:

@@ -40,9 +40,9 @@ def _fit_pixels(path: Path) -> np.ndarray:
 
 def test_figures_exist_and_are_not_trivial(figures):
     names = sorted(p.name for p in figures)
-    assert names == sorted([f"plane_s{s:02d}_ti{t}.png" for s, t in enumerate(("00", "40", "80", "85", "85"))]
-                           + [f"lobe_s{s:02d}_ti{t}.png" for s, t in enumerate(("00", "40", "80", "85", "85"))]
-                           + ["fit_residuals.png"])
+    incidences = ("ti00_pi000", "ti40_pi000", "ti80_pi000", "ti85_pi000", "ti85_pi023")   # θi and φi: s03 ≠ s04
+    assert names == sorted([f"plane_s{s:02d}_{t}.png" for s, t in enumerate(incidences)]
+                           + [f"lobe_s{s:02d}_{t}.png" for s, t in enumerate(incidences)] + ["fit_residuals.png"])
     for path in figures:
         assert path.stat().st_size > 30_000
         rgb = imread(path)[..., :3]
@@ -51,7 +51,7 @@ def test_figures_exist_and_are_not_trivial(figures):
 
 def test_fitted_retro_peak_is_drawn_on_the_lamp_side(figures):
     """θi = 40°: the highest point of the fitted curve in the Cartesian panel sits at +40°, not at the mirror."""
-    (path,) = [p for p in figures if p.name == "plane_s01_ti40.png"]
+    (path,) = [p for p in figures if p.name == "plane_s01_ti40_pi000.png"]
     red = _fit_pixels(path)
     red[:, : red.shape[1] // 2] = False                             # the Cartesian panel (right half) only
     rows, cols = np.nonzero(red)
