@@ -1,7 +1,8 @@
 """The structure check of issue 32, on the repository's own files (nothing outside it is read): one
-DiskFullError and one Motors, the capture path chosen once (at most one isinstance on the calibrated path in
-rig/acquisition), no bench or soak module in the runtime packages, and a docstring in every package
-`__init__` saying what the package owns. The layers and no-cycle contracts are import-linter's (.ci/checks)."""
+DiskFullError, one Motors and one grazing limit; the capture path chosen once (at most one isinstance on the
+calibrated path in rig/acquisition); no bench or soak module in the runtime packages; a docstring in every
+package `__init__` saying what the package owns. The layers and no-cycle contracts are import-linter's
+(.ci/checks)."""
 
 import ast
 from collections.abc import Iterator
@@ -42,9 +43,16 @@ def definitions(name: str) -> list[str]:
             if name in defined(node)]
 
 
-@pytest.mark.parametrize("name", ["DiskFullError", "Motors"])
+@pytest.mark.parametrize("name", ["DiskFullError", "Motors", "GRAZING_LIMIT_DEG"])
 def test_defined_once(name):
     assert len(definitions(name)) == 1, definitions(name)
+
+
+def test_the_grazing_limit_is_written_once():
+    """The campaign's default `limits.grazing_limit_deg` is the physics' GRAZING_LIMIT_DEG, not a second 88.0."""
+    found = [f"{path.relative_to(ROOT)}:{node.lineno}" for path in modules() for node in ast.walk(tree(path))
+             if isinstance(node, ast.Constant) and isinstance(node.value, float) and node.value == 88.0]
+    assert found == definitions("GRAZING_LIMIT_DEG")
 
 
 def names_in(node: ast.expr) -> set[str]:
@@ -65,7 +73,6 @@ def calibrated_path_checks() -> list[str]:
     return found
 
 
-@pytest.mark.xfail(strict=False, reason="issue 32 item 1 (the capturer chosen once) is landing in other commits")
 def test_the_capture_path_is_chosen_once():
     assert len(calibrated_path_checks()) <= 1, calibrated_path_checks()
 

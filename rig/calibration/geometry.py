@@ -35,6 +35,7 @@ from rig.physics import goniometer_fit as gf
 from rig.physics.charuco_board import BoardLayout
 from rig.planning.collisions import path_crosses, zones_of
 from rig.planning.ordering import travel_time_s
+from rig.planning.points import Motors
 
 METHOD = ("ChArUco board on the sample holder (cv2.aruco.CharucoDetector), intrinsics by cv2.calibrateCamera, "
           "goniometer model (axis zeros, holder tilt, camera mount and distance, board offset) by a weighted "
@@ -50,8 +51,6 @@ EXPOSE_FRACTION = 0.6
 METERING_STEPS = 5
 #: Moves may take this much longer than predicted before an axis counts as stuck.
 MOVE_TIMEOUT_FACTOR, MOVE_TIMEOUT_MARGIN_S = 2.0, 10.0
-
-Motors = tuple[float, float, float, float]
 
 
 class GeometryCalibrationError(Exception):

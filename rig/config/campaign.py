@@ -28,6 +28,7 @@ from rig.config.rigfile import RigConfig
 from rig.config.strict import StrictModel
 from rig.config.watchdog import watchdog_problems
 from rig.physics.brdf_models import MODELS
+from rig.physics.illuminance import GRAZING_LIMIT_DEG
 
 
 class CampaignError(ConfigFileError):
@@ -174,7 +175,7 @@ class Suspenders(StrictModel):
 
 class Limits(StrictModel):
     max_view_theta_deg: float = Field(85.0, gt=0, le=90)
-    grazing_limit_deg: float = Field(88.0, gt=0, le=90)
+    grazing_limit_deg: float = Field(GRAZING_LIMIT_DEG, gt=0, le=90)
     skip_roi_unlit: bool = True
 
 
