@@ -1,8 +1,11 @@
-"""The reported uncertainty is honest: on the simulated rig, |f − f_true| ≤ 2u for 93–97 % of points.
+"""The reported uncertainty is honest: on the simulated rig, the point-to-point part covers |f − f_true| at k = 2
+for 93–97 % of points, once the run's common shift is taken out (issue 34; docs/uncertainty.md).
 
 Errors shared by many points (a series' E⊥ reading, an axis zero error, the patch of sample
 under the ROI) make a single campaign's coverage a lumpy statistic, so it is pooled over
 independent simulated rigs (seeds): RetroPhong RM1 and the steep RM3 (n = 68), θi up to 85°.
+The shift is the campaign's weighted mean of f/f_true − 1: what a run's shared errors (on the simulated
+rig its sample's static grain, its exact calibrations stated as such) move all points by.
 """
 
 
@@ -31,7 +34,9 @@ def errors(tmp_path, name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     truth_spec = campaign.sample.simulated_brdf
     wi, wo = d.directions()
     truth = get_model(truth_spec.model)(wi, wo, truth_spec.params)
-    return (d["brdf_per_sr"] - truth) / d["u_brdf_per_sr"], np.abs(d["brdf_per_sr"] / truth - 1)
+    rel, u_point_rel = d["brdf_per_sr"] / truth - 1, d["u_brdf_point_per_sr"] / d["brdf_per_sr"]
+    shift = np.sum(rel / u_point_rel ** 2) / np.sum(u_point_rel ** -2)
+    return (rel - shift) / u_point_rel, np.abs(rel)
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +52,7 @@ def test_k2_coverage_pooled_over_rigs(pooled):
     assert z.size > 1000
     coverage = np.mean(np.abs(z) <= 2)
     assert 0.93 <= coverage <= 0.97, f"k=2 coverage {coverage:.3f}"
-    assert 0.8 < z.std() < 1.2                # neither over- nor under-stated
+    assert 0.85 < z.std() < 1.15              # neither over- nor under-stated
     assert np.all(np.isfinite(z))
 
 
