@@ -28,13 +28,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.execute import execute  # noqa: E402
+from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import Campaign, load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig, SimulationConfig, simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
-from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 TESTS = ROOT / "tests" / "campaigns"
@@ -65,7 +64,7 @@ def samples(paper: bool) -> dict[str, Campaign]:
 
 
 def run(campaign: Campaign, rig: RigConfig, out: Path) -> dict[str, float]:
-    outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
     assert outcome.status == "complete", outcome.status
     d = load(out)
     truth_spec = campaign.sample.simulated_brdf

@@ -23,13 +23,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.execute import execute  # noqa: E402
+from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.monitor.server import make_server, page_url  # noqa: E402
-from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 
@@ -57,7 +56,7 @@ def run(out: Path, viewers: int, poll_s: float) -> tuple[float, float, list[floa
     for t in threads:
         t.start()
     try:
-        outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+        outcome = run_campaign(campaign, rig, out, open_campaign_rig)
     finally:
         stop.set()
         if server is not None:

@@ -21,7 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.execute import execute  # noqa: E402
+from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.analysis.predict import InterpolatingPredictor, measured_domain, model_predictor  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
@@ -29,7 +29,6 @@ from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import sph_to_vec  # noqa: E402
-from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 
@@ -64,7 +63,7 @@ def main() -> None:
         for path in campaigns:
             campaign, rig = load_campaign(path), simulated_rig()
             out = Path(tmp) / path.stem
-            execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+            run_campaign(campaign, rig, out, open_campaign_rig)
             ds = load(out)
             spec = campaign.sample.simulated_brdf
             assert spec is not None

@@ -24,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.execute import execute  # noqa: E402
+from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.analysis.held_out import interpolating_predictor  # noqa: E402
 from rig.bench.draws import draw  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
@@ -33,7 +33,6 @@ from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.geometry import sph_to_vec  # noqa: E402
-from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 
@@ -65,7 +64,7 @@ def main() -> None:
             sample = base.sample.model_copy(update={"simulated_brdf": SimulatedBrdf(model=family, params=params)})
             campaign = base.model_copy(update={"sample": sample})
             out = Path(tmp) / f"draw{k}"
-            execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+            run_campaign(campaign, rig, out, open_campaign_rig)
             ti, pi_, to, po = directions(args.directions, args.seed * 1000 + k)
             truth = get_model(family)(sph_to_vec(np.radians(ti), np.radians(pi_)),
                                       sph_to_vec(np.radians(to), np.radians(po)), params)

@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.execute import execute  # noqa: E402
+from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.analysis.fit import fit_dataset  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
@@ -35,7 +35,6 @@ from rig.config.rigfile import simulated_rig  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
 from rig.data.radiance import PERCENT_CULL, RESOLUTION_LOG2, evaluate_xml, export_radiance_xml  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
-from rig.planning.plan import build_plan  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 MAX_THETA_I_DEG = 85.0 + 0.5      # the paper's last incidence, achieved angles scatter by ~0.01°
@@ -43,7 +42,7 @@ MAX_THETA_I_DEG = 85.0 + 0.5      # the paper's last incidence, achieved angles 
 
 def measure(campaign_file: Path, out: Path) -> tuple[Dataset, np.ndarray]:
     campaign, rig = load_campaign(campaign_file), simulated_rig()
-    outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
     assert outcome.status == "complete", outcome.status
     ds = load(out)
     truth = campaign.sample.simulated_brdf

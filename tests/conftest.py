@@ -76,17 +76,15 @@ def e2e_report(e2e_run: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
 def paper_run(tmp_path_factory: pytest.TempPathFactory):
     """The paper campaign (campaigns/spieringhs2023-rm1.yaml: Tables 1 and 2, RetroPhong RM1) measured once on the
     simulated rig: its dataset and its simulated truth as a function of (ωi, ωo) arrays; read-only."""
-    from rig.acquisition.execute import execute
+    from rig.acquisition.run import run_campaign
     from rig.config.campaign import load_campaign
     from rig.config.rigfile import simulated_rig
     from rig.physics.brdf_models import get_model
-    from rig.planning.plan import build_plan
     from rig.session.connect import open_campaign_rig
 
     campaign, rig = load_campaign(CAMPAIGNS / "spieringhs2023-rm1.yaml"), simulated_rig()
     out = tmp_path_factory.mktemp("paper") / "ds"
-    assert execute(campaign, None, rig, build_plan(campaign, rig), out,
-                   open_campaign_rig(campaign, rig)).status == "complete"
+    assert run_campaign(campaign, rig, out, open_campaign_rig).status == "complete"
     truth = campaign.sample.simulated_brdf
     model = get_model(truth.model)
     return load(out), lambda wi, wo: model(wi, wo, truth.params)

@@ -10,14 +10,13 @@ from pathlib import Path
 import numpy as np
 
 from rig.acquisition.engine import Runner
-from rig.acquisition.execute import execute, manifest_for
+from rig.acquisition.execute import new_dataset
 from rig.acquisition.outcome import RunEnding, ending_of
 from rig.acquisition.resume import prepare_resume
+from rig.acquisition.run import prepare_run, run_campaign
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
 from rig.data.dataset_reader import load
-from rig.data.dataset_writer import DatasetWriter
-from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 from rig.simulators.faults import FaultInjector, FaultSchedule
 from rig.simulators.rig import SimulatedRig
@@ -32,12 +31,11 @@ class SoakResult:
 
 def run_with_faults(campaign: Campaign, campaign_path: Path, rig: RigConfig, out: Path,
                     schedule: FaultSchedule, max_restarts: int = 5) -> SoakResult:
-    plan = build_plan(campaign, rig)
     truth = campaign.sample.simulated_brdf
     if truth is None:
         raise ValueError(f"campaign {campaign.name!r}: a soak run needs the sample's simulated_brdf")
-    writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig))
-    writer.write_skipped(plan.skipped)
+    prepared = prepare_run(campaign, rig, out, campaign_file=campaign_path)
+    plan, writer = prepared.plan, new_dataset(prepared)
     injector = FaultInjector(schedule, {})
     done_rows: list[dict] = []
     attempts: list[tuple[str, str | None]] = []
@@ -67,8 +65,7 @@ def run_with_faults(campaign: Campaign, campaign_path: Path, rig: RigConfig, out
 
 
 def run_fault_free(campaign: Campaign, campaign_path: Path, rig: RigConfig, out: Path) -> str:
-    plan = build_plan(campaign, rig)
-    return execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig)).status
+    return run_campaign(campaign, rig, out, open_campaign_rig, campaign_file=campaign_path).status
 
 
 @dataclass(frozen=True)

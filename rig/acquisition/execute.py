@@ -1,4 +1,5 @@
-"""Run one campaign end to end: dataset folder, rig, runner; used by `rig run` and the benches."""
+"""Carry out a prepared run (rig.acquisition.run): connect, make or reopen the dataset folder, run the runner, and
+say how it ended; Ctrl+C and SIGTERM become the runner's stop and abort requests."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -120,20 +121,57 @@ def stop_on_signals(requests: SignalRequests) -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
-            devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None = None, *,
-            writer: DatasetWriter | None = None, done_rows: Sequence[dict] = (),
-            handle_signals: bool = False, source: PointSource | None = None,
-            space_needed_bytes: int | None = None) -> RunOutcome:
-    """Measure `plan` into a new dataset folder `out`, or into `writer`'s reopened folder, leaving out
-    `done_rows` (a resume).
+#: Opens the rig a campaign runs on (rig.session.connect.open_campaign_rig: the simulated or the real one).
+RigOpener = Callable[[Campaign, RigConfig], AbstractContextManager[RigDevices]]
+#: Where an adaptive campaign's further points come from, given its plan and a resumed run's logged batches
+#: (rig.session.adaptive_sampler.sampler_for; None: the plan is all).
+SamplerFactory = Callable[[Campaign, RigConfig, Plan, Sequence[dict]], PointSource | None]
 
-    The new folder is made once `devices` has been entered, i.e. every device has answered (the caller
-    decides which rig: rig.session.connect.open_campaign_rig gives the simulated or the real one): a rig
+
+@dataclass(frozen=True)
+class Prepared:
+    """A run that passed its pre-flight (rig.acquisition.run): what it measures, and where."""
+
+    campaign: Campaign
+    #: The campaign file, as the manifest records it (None: a campaign built in code).
+    campaign_path: Path | None
+    rig: RigConfig
+    plan: Plan
+    out: Path
+    #: The dataset's estimated size, for the message of a full disk.
+    space_needed_bytes: int | None = None
+    #: A resume's reopened (and locked) folder; None: a new one is made once every device has answered.
+    writer: DatasetWriter | None = None
+    #: Rows already in the folder (a resume): their points are not measured again.
+    done_rows: Sequence[dict] = ()
+    #: A resumed adaptive campaign's logged batches, for its sampler.
+    logged_batches: Sequence[dict] = ()
+
+    def run(self, open_devices: RigOpener, *, progress: ProgressCallback | None = None, handle_signals: bool = False,
+            sampler: SamplerFactory | None = None) -> RunOutcome:
+        """Connect with `open_devices`, measure, and say how the run ended (`execute`)."""
+        source = sampler(self.campaign, self.rig, self.plan, self.logged_batches) if sampler else None
+        return execute(self, open_devices(self.campaign, self.rig), progress, handle_signals=handle_signals,
+                       source=source)
+
+
+def new_dataset(prepared: Prepared) -> DatasetWriter:
+    """The new dataset folder of `prepared`: its manifest and its skipped points (DatasetError if it cannot be
+    made)."""
+    writer = DatasetWriter(prepared.out, manifest_for(prepared.campaign, prepared.campaign_path, prepared.rig),
+                           space_needed_bytes=prepared.space_needed_bytes)
+    writer.write_skipped(prepared.plan.skipped)
+    return writer
+
+
+def execute(prepared: Prepared, devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None = None,
+            *, handle_signals: bool = False, source: PointSource | None = None) -> RunOutcome:
+    """Measure `prepared.plan` into a new dataset folder, or into a resume's reopened one, leaving out its done rows.
+
+    The new folder is made once `devices` has been entered, i.e. every device has answered: a rig
     that cannot be reached (a closed port, a served rig busy with another client) or a stop while
     connecting leaves nothing behind (`written` False), so the same command can simply be run again.
-    DatasetError (nothing written) if the folder cannot be made; `space_needed_bytes` is the dataset's
-    estimated size, for the message of a full disk.
+    DatasetError (nothing written) if the folder cannot be made.
 
     `source`: more points once the plan's are measured (an adaptive campaign: rig.session.adaptive_sampler).
 
@@ -143,17 +181,15 @@ def execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan
     """
     requests = SignalRequests()
     with stop_on_signals(requests) if handle_signals else nullcontext():
-        return _execute(campaign, campaign_path, rig, plan, out, devices, progress, writer, done_rows, requests,
-                        source, space_needed_bytes)
+        return _execute(prepared, devices, progress, requests, source)
 
 
-def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, plan: Plan, out: Path,
-             devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None,
-             writer: DatasetWriter | None, done_rows: Sequence[dict], requests: SignalRequests,
-             source: PointSource | None, space_needed_bytes: int | None) -> RunOutcome:
+def _execute(prepared: Prepared, devices: AbstractContextManager[RigDevices], progress: ProgressCallback | None,
+             requests: SignalRequests, source: PointSource | None) -> RunOutcome:
     """`execute` with the signals already routed to `requests`."""
     wall0 = time.perf_counter()
     runner = None
+    writer = prepared.writer
     exit_report: dict[str, Any] = {}
     try:
         with devices as opened:
@@ -161,11 +197,9 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
             if writer is None:
                 if requests.stop or requests.abort:      # stopped while connecting: nothing was measured
                     raise AbortRequested(requests.abort or requests.stop)
-                writer = DatasetWriter(out, manifest_for(campaign, campaign_path, rig),
-                                       space_needed_bytes=space_needed_bytes)
-                writer.write_skipped(plan.skipped)
-            runner = Runner(campaign, plan, opened, writer, rig, progress=progress, done_rows=done_rows,
-                            source=source)
+                writer = new_dataset(prepared)
+            runner = Runner(prepared.campaign, prepared.plan, opened, writer, prepared.rig, progress=progress,
+                            done_rows=prepared.done_rows, source=source)
             requests.attach(runner)
             ending = RunEnding(runner.run())
     except (KeyboardInterrupt, Exception) as exc:   # KeyboardInterrupt: handle_signals=False, Python's Ctrl+C
@@ -182,6 +216,6 @@ def _execute(campaign: Campaign, campaign_path: Path | None, rig: RigConfig, pla
         finally:
             if writer is not None:
                 writer.close()
-    kept = runner.measured if runner else len(done_rows)      # a resume's points are kept even if the rig is not
-    return RunOutcome(ending.status, kept, runner.rig_time() if runner else 0.0, time.perf_counter() - wall0, out,
-                      ending.message, exit_report.get("lamp_problem"), written=writer is not None)
+    kept = runner.measured if runner else len(prepared.done_rows)   # a resume's points are kept even if the rig is not
+    return RunOutcome(ending.status, kept, runner.rig_time() if runner else 0.0, time.perf_counter() - wall0,
+                      prepared.out, ending.message, exit_report.get("lamp_problem"), written=writer is not None)

@@ -22,40 +22,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
+from rig.acquisition.execute import Prepared
+from rig.acquisition.preflight import preflight
 from rig.acquisition.rig_change import LINK_KEYS, instrument_difference, link_changes
-from rig.config.campaign import Campaign, CampaignError, campaign_sha256, check_campaign_for_rig, load_campaign
+from rig.config.campaign import CampaignError, campaign_sha256, load_campaign
 from rig.config.rigfile import RigConfig, load_rig_config
+from rig.core import events
 from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.dataset_format import BRDF_COLUMNS
 from rig.data.dataset_reader import complete_lines, numeric_columns, read_brdf_table
 from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.output_folder import folder_size
-from rig.devices import check_devices
-from rig.planning.candidates import candidate_plan, logged_points
-from rig.planning.plan import build_plan
-from rig.planning.points import Plan
 
 _TEXT_FIELDS = ("point_id", "flags", "time_utc")
 
 
 class ResumeError(CampaignError):
     """The folder cannot be resumed; the message says why and what to do."""
-
-
-@dataclass
-class Resumption:
-    writer: DatasetWriter
-    campaign: Campaign
-    campaign_path: Path
-    rig: RigConfig
-    plan: Plan
-    done_rows: list[dict]
-    logged_batches: list[dict]          # an adaptive campaign's `adaptive_batch` events (rig.planning.candidates)
 
 
 def _rows(folder: Path) -> list[dict]:
@@ -116,12 +102,12 @@ def _pending_rows(folder: Path) -> dict[str, dict]:
     pending: dict[str, dict] = {}
     for path, lineno, event in _events(folder):
         kind = event.get("event")
-        if kind == "point_pending":
+        if kind == events.POINT_PENDING:
             problem = _row_problem(event.get("row"))
             if problem:
                 raise _corrupt(path, lineno, f"a point_pending record whose {problem.removeprefix('its ')}")
             pending[event["row"]["point_id"]] = event["row"]
-        elif kind == "points_discarded":
+        elif kind == events.POINTS_DISCARDED:
             ids = event.get("point_ids")
             if not isinstance(ids, list) or not all(isinstance(i, str) for i in ids):
                 raise _corrupt(path, lineno, "a points_discarded record without a list of point ids")
@@ -134,7 +120,7 @@ def _logged_batches(folder: Path, candidates: set[str]) -> list[dict]:
     """An adaptive run's `adaptive_batch` events, checked: candidate ids, four finite motor angles each."""
     logged = []
     for path, lineno, event in _events(folder):
-        if event.get("event") != "adaptive_batch":
+        if event.get("event") != events.ADAPTIVE_BATCH:
             continue
         ids, motors = event.get("points"), event.get("motors_deg")
         ok = (isinstance(ids, list) and isinstance(motors, list) and len(ids) == len(motors)
@@ -198,10 +184,10 @@ def _same_instruments(folder: Path, recorded: RigConfig, rig_file: str | Path) -
     return rig, link_changes(recorded, rig)
 
 
-def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | Path | None = None) -> Resumption:
-    """Lock and check `folder`, recover its written-ahead points and log the resume; `rig_file` (`--rig`)
-    replaces the manifest's rig configuration if it describes the same instruments (ResumeError naming the
-    key that differs otherwise)."""
+def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | Path | None = None) -> Prepared:
+    """Lock and check `folder`, pass the pre-flight (rig.acquisition.preflight), recover its written-ahead points
+    and log the resume; `rig_file` (`--rig`) replaces the manifest's rig configuration if it describes the same
+    instruments (ResumeError naming the key that differs otherwise)."""
     folder = Path(folder)
     writer = DatasetWriter.reopen(folder)
     try:
@@ -226,43 +212,35 @@ def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | P
         changes: dict[str, list[Any]] = {}
         if rig_file is not None:
             rig, changes = _same_instruments(folder, rig, rig_file)
-        check_campaign_for_rig(campaign, rig, path)
-        check_devices(rig, rig_file if rig_file is not None else folder / "dataset.json")
-        plan = build_plan(campaign, rig)
-        logged: list[dict] = []
-        if campaign.sampling.mode == "adaptive":
-            candidates = candidate_plan(campaign, rig)
-            logged = _logged_batches(folder, {p.point_id for p in candidates.points})
-            plan = replace(plan, points=plan.points + tuple(logged_points(candidates, logged)))
         done = _rows(folder)
         done_ids = {r["point_id"] for r in done}
+        recovered = [row for pid, row in _pending_rows(folder).items() if pid not in done_ids]
+        checked = preflight(campaign, rig, folder, campaign_file=path,
+                            rig_file=rig_file if rig_file is not None else folder / "dataset.json",
+                            done=done_ids | {r["point_id"] for r in recovered},
+                            adaptive_log=lambda candidates: _logged_batches(folder, candidates))
+        plan = checked.plan
         unknown = done_ids - {p.point_id for p in plan.points}
         if unknown and not force:
             raise ResumeError(f"{folder}: {len(unknown)} measured points are not in the campaign's plan "
                               f"(e.g. {sorted(unknown)[0]}); use --force to resume anyway")
-        recovered = [row for pid, row in _pending_rows(folder).items() if pid not in done_ids]
-        left = len({p.point_id for p in plan.points} - done_ids) - len(recovered)
-        needed = estimate_dataset_bytes(max(left, 0), 0, rig, campaign.capture.save_images)
-        problem = space_problem(folder, needed, "free some space, or move the folder to a disk with room "
-                                                "and resume there")
-        if problem:
-            raise ResumeError(problem)
-        writer.space_needed_bytes = folder_size(folder) + needed
+        writer.space_needed_bytes = folder_size(folder) + checked.space_needed_bytes
         for row in recovered:
             writer.append_row(row)
         if recovered:
-            writer.event("pending_recovered", points=len(recovered),
+            writer.event(events.PENDING_RECOVERED, points=len(recovered),
                          point_ids=[r["point_id"] for r in recovered])
         done = _rows(folder)
         new_rig = {} if rig_file is None else {"rig_file": str(Path(rig_file).resolve()), "rig_changes": changes}
-        writer.event("resume", previous_status=status, measured_before=len(done), campaign_changed=changed,
+        writer.event(events.RESUME, previous_status=status, measured_before=len(done), campaign_changed=changed,
                      torn_bytes_cut=writer.cut_bytes, **new_rig)
         resumes = resumes + [{"time_utc": utc_now(), "previous_status": status,
                               "measured_before": len(done), "forced": force and changed, **new_rig}]
         rig_entry = {} if rig_file is None else {           # a further resume reaches the devices where they are now
             "rig": {**manifest["rig"], "config": rig.model_dump(mode="json")}}
         writer.update_manifest(status="running", resumes=resumes, **rig_entry)
-        return Resumption(writer, campaign, path, rig, plan, done, logged)
+        return Prepared(campaign, path, rig, plan, folder, writer.space_needed_bytes, writer, done,
+                        checked.logged_batches)
     except BaseException:
         writer.close()
         raise

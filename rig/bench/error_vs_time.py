@@ -21,12 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
 from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
-from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
 BASELINE = "fixed bracket 5×1 stop"
@@ -57,12 +56,11 @@ def run_settings(campaign: Campaign, campaign_path: Path, settings: Mapping[str,
                  rig: RigConfig | None = None) -> list[dict]:
     """Run the campaign once per capture setting (default: on the built-in simulated rig); a row per setting."""
     rig = rig or RigConfig()
-    plan = build_plan(campaign, rig)
     results = []
     for label, overrides in settings.items():
         variant = campaign.model_copy(update={"capture": campaign.capture.model_copy(update=dict(overrides))})
         with tempfile.TemporaryDirectory() as tmp:
-            outcome = execute(variant, campaign_path, rig, plan, Path(tmp) / "ds", open_campaign_rig(variant, rig))
+            outcome = run_campaign(variant, rig, Path(tmp) / "ds", open_campaign_rig, campaign_file=campaign_path)
             if outcome.status != "complete":
                 raise RuntimeError(f"setting {label!r}: campaign {outcome.status}: {outcome.error}")
             results.append({"setting": label, "rig_time_s": outcome.rig_time_s, "wall_s": outcome.wall_s,

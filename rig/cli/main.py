@@ -11,11 +11,11 @@ from collections import Counter
 from pathlib import Path
 
 from rig import __version__
-from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
 from rig.acquisition.engine import NOMINAL_CAPTURE_S
-from rig.acquisition.execute import RunOutcome, execute
+from rig.acquisition.execute import RunOutcome
 from rig.acquisition.progress import ProgressBar, end_progress_lines, format_duration
 from rig.acquisition.resume import prepare_resume
+from rig.acquisition.run import prepare_run
 from rig.cli import bench, calibrate, export, fit, import_alta, monitor, plot, predict, report, sim
 from rig.config.campaign import Campaign, CampaignError, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
@@ -23,7 +23,6 @@ from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
 from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
-from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
 from rig.drivers.interfaces import RigDevices
 from rig.drivers.registry import installed_drivers
@@ -189,10 +188,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
     left = len(r.plan.points) - len(r.done_rows)
     print(f"rig {__version__}: resuming {r.campaign.name} in {args.resume}: {len(r.done_rows)} points done, "
           f"{left} to measure", file=sys.stderr)
-    outcome = execute(r.campaign, r.campaign_path, r.rig, r.plan, Path(args.resume),
-                      open_campaign_rig(r.campaign, r.rig), writer=r.writer, done_rows=r.done_rows,
-                      progress=None if args.quiet else ProgressBar(), handle_signals=True,
-                      source=sampler_for(r.campaign, r.rig, r.plan, r.logged_batches))
+    outcome = r.run(open_campaign_rig, progress=None if args.quiet else ProgressBar(), handle_signals=True,
+                    sampler=sampler_for)
     return _report_outcome(outcome, len(r.plan.skipped))
 
 
@@ -238,33 +235,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not args.campaign:
         return fail("give a campaign file, or --resume DIR")
     try:
-        campaign, rig, plan = _load(args)
-        check_devices(rig, args.rig or "<built-in rig>")
-    except ConfigFileError as exc:
+        campaign, rig = load_campaign(args.campaign), _rig_config(args)
+        run = prepare_run(campaign, rig, Path(args.out or campaign.output.dir), campaign_file=args.campaign,
+                          rig_file=args.rig or "<built-in rig>")
+    except (ConfigFileError, DatasetError) as exc:
         return fail(str(exc))
-    if rig.simulated and campaign.sample.simulated_brdf is None:
-        return fail(f"{args.campaign}: key 'sample.simulated_brdf' is required on the simulated rig "
-                     "(the sample's true BRDF: model and params)")
-    if not plan.points:
-        return fail(f"{args.campaign}: no point of the campaign can be measured "
-                     f"(skipped: {plan.skipped_by_reason()})")
-    out = Path(args.out or campaign.output.dir)
-    campaign_path = Path(args.campaign).resolve()     # the manifest's record works from any folder
-    needed = estimate_dataset_bytes(len(plan.points), len(plan.skipped), rig, campaign.capture.save_images)
-    try:
-        require_new_output(out)
-        problem = space_problem(out, needed)
-        if problem:
-            return fail(problem)
-    except DatasetError as exc:
-        return fail(str(exc))
+    plan = run.plan
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
-    print(f"rig {__version__}: {campaign.name} on {where} → {out} "
+    print(f"rig {__version__}: {campaign.name} on {where} → {run.out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
     try:
-        outcome = execute(campaign, campaign_path, rig, plan, out, open_campaign_rig(campaign, rig),
-                          progress=None if args.quiet else ProgressBar(), handle_signals=True,
-                          source=sampler_for(campaign, rig, plan), space_needed_bytes=needed)
+        outcome = run.run(open_campaign_rig, progress=None if args.quiet else ProgressBar(), handle_signals=True,
+                          sampler=sampler_for)
     except DatasetError as exc:         # the folder could not be made once the rig was up: nothing written
         return fail(str(exc))
     return _report_outcome(outcome, len(plan.skipped))

@@ -14,10 +14,9 @@ from contextlib import contextmanager
 import pytest
 from test_runner import at_point, events, run, small_campaign, suspenders_run
 
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.cli.main import _report_outcome
 from rig.config.rigfile import RigConfig
-from rig.planning.plan import build_plan
 from rig.simulators.rig import SimulatedRig
 
 #: The built-in rig's `lamp.watchdog_s`, and a freeze longer than it.
@@ -90,10 +89,10 @@ def simulated(campaign, rig, sims):
 
 
 def run_to_the_end(tmp_path, at=None):
-    """`execute` a small campaign; `at(peers)` after point 5. The outcome and the dataset's manifest."""
+    """Run a small campaign; `at(peers)` after point 5. The outcome and the dataset's manifest."""
     campaign, rig, sims = small_campaign(suspenders={"max_wait_s": 60}), RigConfig(), []
-    outcome = execute(campaign, None, rig, build_plan(campaign, rig), tmp_path / "ds", simulated(campaign, rig, sims),
-                      progress=lambda p: at and p.done == 5 and at(sims[0].peers))
+    outcome = run_campaign(campaign, rig, tmp_path / "ds", lambda c, r: simulated(c, r, sims),
+                           progress=lambda p: at and p.done == 5 and at(sims[0].peers))
     return outcome, json.loads((tmp_path / "ds" / "dataset.json").read_text())
 
 

@@ -229,7 +229,7 @@ def test_a_resume_whose_rig_cannot_be_reached_counts_the_points_it_keeps(tmp_pat
     """Before: "0 completed points kept" for a resume that failed to connect, whatever the folder held."""
     from contextlib import contextmanager
 
-    from rig.acquisition.execute import execute
+    from rig.acquisition.execute import Prepared
     from rig.core.errors import DeviceError
     from rig.data.dataset_writer import DatasetWriter
 
@@ -243,7 +243,8 @@ def test_a_resume_whose_rig_cannot_be_reached_counts_the_points_it_keeps(tmp_pat
         yield
 
     done = [{"point_id": f"00-00{i}"} for i in range(3)]
-    outcome = execute(campaign, CAMPAIGN, rig, build_plan(campaign, rig), out, unreachable(),
-                      writer=DatasetWriter.reopen(out), done_rows=done)
+    resumed = Prepared(campaign, CAMPAIGN, rig, build_plan(campaign, rig), out, writer=DatasetWriter.reopen(out),
+                       done_rows=done)
+    outcome = resumed.run(lambda c, r: unreachable())
     assert (outcome.status, outcome.measured, outcome.written) == ("failed", 3, True)
     assert events(out)[-1]["event"] == "failed" and manifest(out)["status"] == "failed"

@@ -26,7 +26,7 @@ import yaml
 
 from repo_paths import ROOT
 from rig.acquisition.engine import Runner
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.acquisition.suspenders import IlluminanceJump
 from rig.config.campaign import Campaign, parse_campaign
 from rig.config.rigfile import RigConfig
@@ -307,8 +307,7 @@ def test_signals_landing_in_the_exit_path_cannot_cut_it_short(tmp_path, monkeypa
             os.kill(os.getpid(), signal.SIGINT)
     c, rig = campaign(), RigConfig()
     handler = signal.getsignal(signal.SIGINT)
-    outcome = execute(c, None, rig, build_plan(c, rig), tmp_path / "ds", open_campaign_rig(c, rig),
-                      progress=first_ctrl_c, handle_signals=True)
+    outcome = run_campaign(c, rig, tmp_path / "ds", open_campaign_rig, progress=first_ctrl_c, handle_signals=True)
     assert signal.getsignal(signal.SIGINT) is handler               # restored afterwards
     assert outcome.status == "interrupted" and lamp_was_on == [True, False]
     folder = tmp_path / "ds"

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from repo_paths import TEST_CAMPAIGNS
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.calibration.radiometric import measure
 from rig.cli.main import main
 from rig.config.camera_calibration import load_camera_calibration
@@ -17,7 +17,6 @@ from rig.core.values import Window
 from rig.data.dataset_reader import load
 from rig.physics import camera_calibration as cc
 from rig.physics.brdf_models import get_model
-from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 from rig.simulators.camera import UniformSourceCamera
 from rig.simulators.sensor import convert_nonlinear
@@ -136,8 +135,7 @@ def test_campaign_with_the_calibration_file(tmp_path):
     for name, path in (("plain", rig), ("calibrated", calibrated)):
         config = load_rig_config(path)
         out = tmp_path / name
-        outcome = execute(campaign, None, config, build_plan(campaign, config), out,
-                          open_campaign_rig(campaign, config))
+        outcome = run_campaign(campaign, config, out, open_campaign_rig)
         assert outcome.status == "complete"
         results[name] = load(out)
     plain, calib = results["plain"], results["calibrated"]

@@ -13,12 +13,11 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS as CAMPAIGNS
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig, SimulationConfig
 from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
-from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
 SEEDS = range(1, 7)
@@ -28,7 +27,7 @@ def errors(tmp_path, name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     campaign = load_campaign(CAMPAIGNS / name)
     rig = RigConfig(simulation=SimulationConfig(seed=seed))
     out = tmp_path / f"{name}-{seed}"
-    outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
     assert outcome.status == "complete"
     d = load(out)
     truth_spec = campaign.sample.simulated_brdf

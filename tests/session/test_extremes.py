@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from rig.acquisition.execute import execute
+from rig.acquisition.run import prepare_run
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.data.dataset_format import BRDF_COLUMNS
@@ -26,10 +26,10 @@ def measure(tmp_path, incidence, viewing, model="retrophong", params=RM1, **extr
         "name": "extreme", "sample": {"id": "x", "simulated_brdf": {"model": model, "params": params}},
         "incidence": incidence, "viewing": viewing, "lamp": {"warmup_min_s": 60}, **extra})
     rig = RigConfig()
-    plan = build_plan(campaign, rig)
-    outcome = execute(campaign, None, rig, plan, tmp_path / "ds", open_campaign_rig(campaign, rig))
+    run = prepare_run(campaign, rig, tmp_path / "ds")
+    outcome = run.run(open_campaign_rig)
     assert outcome.status == "complete", outcome.error
-    return load(tmp_path / "ds"), plan
+    return load(tmp_path / "ds"), run.plan
 
 
 def assert_all_finite(d):

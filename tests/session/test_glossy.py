@@ -16,12 +16,11 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS
-from rig.acquisition.execute import execute
+from rig.acquisition.run import run_campaign
 from rig.config.campaign import Campaign, load_campaign
 from rig.config.rigfile import RigConfig, SimulationConfig, simulated_rig
 from rig.data.dataset_reader import load
 from rig.physics.brdf_models import get_model
-from rig.planning.plan import build_plan
 from rig.session.connect import open_campaign_rig
 
 GLOSSY = load_campaign(TEST_CAMPAIGNS / "e2e-glossy.yaml")
@@ -37,7 +36,7 @@ def with_sample(campaign: Campaign, model: str, params: dict[str, float]) -> Cam
 def measured(tmp_path, campaign: Campaign, rig: RigConfig, seed: int):
     rig = rig.model_copy(update={"simulation": SimulationConfig(seed=seed)})
     out = tmp_path / f"{campaign.sample.simulated_brdf.model}-{seed}"
-    outcome = execute(campaign, None, rig, build_plan(campaign, rig), out, open_campaign_rig(campaign, rig))
+    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
     assert outcome.status == "complete"
     d = load(out)
     spec = campaign.sample.simulated_brdf
