@@ -56,7 +56,8 @@ def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
     d = load(out)
     wi, wo = d.directions()
     truth = get_model(drawn.family)(wi, wo, drawn.params)
-    f, u, u_point, u_corr = d["brdf_per_sr"], d["u_brdf_per_sr"], d["u_brdf_point_per_sr"], d["u_brdf_correlated_per_sr"]
+    f, u = d["brdf_per_sr"], d["u_brdf_per_sr"]
+    u_point, u_corr = d["u_brdf_point_per_sr"], d["u_brdf_correlated_per_sr"]
     rel, u_point_rel = f / truth - 1, u_point / f
     z_point, shifts, u_shared = np.empty_like(f), [], []
     for position in np.unique(d["filter_position"]):
