@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.analysis.held_out import calibrate
 from rig.analysis.predict import InterpolatingPredictor, measured_domain
 from rig.analysis.validation import TAU_REL
 from rig.config.rigfile import AxesConfig
@@ -47,6 +48,10 @@ EXTRAPOLATED_U_REL = 0.3
 MIN_WIDTH_DEG = 1.0
 #: A taken view damps the gain of candidates within this distance in the projected disk by (d/r)².
 SPREAD_RADIUS = 0.03
+#: A batch is its incidence's chosen views or the first of them in these shares, whichever scores best per second.
+PARTIAL_SHARES = (1.0, 0.5, 0.25)
+#: ...but never fewer views than this (a hull needs a few).
+MIN_BATCH_VIEWS = 4
 #: Scores and gains are compared in bins of this many octaves.
 SCORE_BIN_LOG2 = 0.25
 
@@ -84,9 +89,14 @@ def candidate_u_rel(rows: Sequence[Mapping[str, object]], points: Sequence[Plann
                     planned: Mapping[str, PlannedPoint],
                     loo_cache: dict[bytes, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each candidate's u/(f + τ): the interpolant's u (its measurements, the interpolation error within and
-    between incidences), at least EXTRAPOLATED_U_REL outside the measured θi range; and the measured incidences."""
+    between incidences), calibrated as `rig predict`'s is (rig.analysis.held_out.calibrate: the alignment and the
+    between-incidence scale from leave-one-incidence-out errors, the scale binned like the scores so that a
+    re-measured point's noise does not move it), at least EXTRAPOLATED_U_REL outside the measured θi range; and the
+    measured incidences."""
     ds = rows_dataset(rows, planned)
     domain = measured_domain(ds, loo_cache=loo_cache)
+    calibrate(domain)
+    domain.theta_u_scale = float(binned(np.array(domain.theta_u_scale)))
     a = np.array([(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg) for p in points], float).reshape(-1, 4)
     pred = InterpolatingPredictor(domain).predict(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
     f = ds["brdf_per_sr"]
@@ -152,19 +162,37 @@ def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measure
     best: Batch | None = None
     for series, idx in sorted(by_series.items()):
         pts = [left[k] for k in idx]
-        chosen = spread_by_gain(pts, gain[idx], batch_points)
-        if not chosen:
+        width = represented_width_deg(measured_deg, pts[0].theta_i_deg, theta_range)
+        batch = series_batch(candidates, series, pts, gain[idx], width, float(np.max(u_rel)), position, axes, zones,
+                             batch_points, capture_s, reading_s)
+        if batch is None or batch.estimated_s > max_s:
             continue
-        one = Plan(tuple(s for s in candidates.series if s.index == series), tuple(pts[k] for k in sorted(chosen)),
+        if best is None or binned(np.array(batch.score_per_s)) > binned(np.array(best.score_per_s)):
+            best = batch
+    return best
+
+
+def series_batch(candidates: Plan, series: int, pts: Sequence[PlannedPoint], gain: np.ndarray, width: float,
+                 max_u_rel: float, position: Motors, axes: AxesConfig, zones: Sequence[ForbiddenZone],
+                 batch_points: int, capture_s: float, reading_s: float) -> Batch | None:
+    """The batch of one incidence: its views of largest (spread) gain, as many as give the best gain per second
+    among the whole choice and its first half and quarter (`PARTIAL_SHARES`; a tie keeps more views). The
+    stage's move and the E⊥ reading are paid once per batch, each view adds its capture and the arm's travel:
+    where the reconstruction still needs the whole pattern its low-gain views pay for themselves, and where it
+    does not, they are left for a later batch. The choice does not depend on the budget (a batch is never cut
+    to fit: the caller passes over one that does not)."""
+    order = spread_by_gain(pts, gain, batch_points)
+    best: Batch | None = None
+    sizes = {min(len(order), max(MIN_BATCH_VIEWS, int(np.ceil(share * len(order))))) for share in PARTIAL_SHARES}
+    for k in sorted(sizes - {0}, reverse=True):
+        chosen = order[:k]
+        one = Plan(tuple(s for s in candidates.series if s.index == series), tuple(pts[i] for i in sorted(chosen)),
                    ())
         ordered = order_plan(one, axes, zones, position)
         moves = path_time_s(axes, position, np.array([p.motors_deg for p in ordered.points]))
         seconds = moves + capture_s * len(chosen) + reading_s
-        if seconds > max_s:
-            continue
-        width = represented_width_deg(measured_deg, pts[0].theta_i_deg, theta_range)
-        g = width * float(np.sum(gain[idx][chosen]))
-        batch = Batch(ordered.points, series, seconds, g, g / seconds, float(np.max(u_rel)))
+        g = width * float(np.sum(gain[chosen]))
+        batch = Batch(ordered.points, series, seconds, g, g / seconds, max_u_rel)
         if best is None or binned(np.array(batch.score_per_s)) > binned(np.array(best.score_per_s)):
             best = batch
     return best

@@ -63,17 +63,27 @@ def held_out(domain: MeasuredDomain, aligned: bool) -> HeldOut:
     return HeldOut(np.concatenate(errors) if errors else np.zeros(0), np.concatenate(u) if u else np.zeros(0))
 
 
+def calibrate(domain: MeasuredDomain) -> dict[bool, HeldOut]:
+    """Set the domain's alignment and between-incidence u scale from its held-out incidences (module docstring);
+    the held-out checks of both alignments. Fewer than three incidences: left as they are (nothing to leave out).
+    Also what the adaptive sampler's guide uses (rig.analysis.adaptive)."""
+    if len(domain.incidences) < 3:
+        return {}
+    checks = {aligned: held_out(domain, aligned) for aligned in (True, False)}
+    domain.aligned = checks[True].rms <= checks[False].rms
+    domain.theta_u_scale = checks[domain.aligned].u_scale
+    return checks
+
+
 def interpolating_predictor(ds: Dataset) -> InterpolatingPredictor:
     """The interpolant of `ds`, its alignment and between-incidence u chosen on held-out incidences (module
     docstring), with a method text that says so."""
     domain = measured_domain(ds)
     if len(domain.incidences) < 3:
         return InterpolatingPredictor(domain)
-    checks = {aligned: held_out(domain, aligned) for aligned in (True, False)}
-    aligned = checks[True].rms <= checks[False].rms
+    checks = calibrate(domain)
+    aligned, scale = domain.aligned, domain.theta_u_scale
     chosen = checks[aligned]
-    scale = chosen.u_scale
-    domain.aligned, domain.theta_u_scale = aligned, scale
     return InterpolatingPredictor(domain, (
         "interpolate: piecewise-linear in ln f over each incidence's views, linear in θi between them at "
         f"{'lobe-aligned' if aligned else 'fixed'} views (leave-one-incidence-out RMS error in ln f "

@@ -24,7 +24,7 @@ import json
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,11 +38,13 @@ from rig.bench.distributed import Failure, Task, run_tasks
 from rig.bench.draws import Draw
 from rig.config.campaign import Campaign, SimulatedBrdf
 from rig.config.rigfile import RigConfig, SimulationConfig
+from rig.core.events import ADAPTIVE_BATCH, WARMUP_STABLE
 from rig.data.dataset_reader import Dataset, load
 from rig.session.adaptive_sampler import sampler_for
 from rig.session.connect import open_campaign_rig
 
 TABLE = "table"
+ADAPTIVE = "adaptive"
 OPTIMISED = "table, optimised"
 #: Adaptive budgets as fractions of the table's rig time after warm-up: far too few to more than enough.
 BUDGET_FRACTIONS = (0.05, 0.1, 0.175, 0.25, 0.35, 0.5)
@@ -128,15 +130,20 @@ def strategy_campaign(campaign: Campaign, drawn: Draw, strategy: str, budget_s: 
     return campaign.model_copy(update={"sample": sample, **update})
 
 
-def measure(campaign: Campaign, drawn: Draw, strategy: str, fraction: float | None = None,
-            table_rig_time_s: float | None = None, reference: Dataset | None = None) -> tuple[Result, Dataset]:
+def measure(campaign: Campaign, drawn: Draw, strategy: str, fractions: Sequence[float] = (),
+            table_rig_time_s: float | None = None, reference: Dataset | None = None
+            ) -> tuple[list[Result], Dataset]:
     """One strategy's campaign on the simulated rig (seeded by the draw: the same rig for every strategy) into a
     temporary folder, scored where the `reference` (the table's dataset; by default its own) measures; the
-    result and the dataset. A dask task: everything it needs is in its arguments."""
-    budget = None if fraction is None or table_rig_time_s is None else fraction * table_rig_time_s
+    results and the dataset. A dask task: everything it needs is in its arguments.
+
+    Adaptive: one run with the largest budget, scored at each budget as the prefix of the batches that fit in it
+    (`budget_prefixes`): a run with the smaller budget chooses the same batches up to there (the choice never
+    depends on the budget, only whether a batch fits), and may then add one smaller batch that still fits; so
+    each budget is scored on at most what its own run would measure."""
+    budget = max(fractions) * table_rig_time_s if fractions and table_rig_time_s is not None else None
     variant = strategy_campaign(campaign, drawn, strategy, budget)
     rig = RigConfig(simulation=SimulationConfig(seed=drawn.seed * 1000 + drawn.index))
-    domain = domain_of(campaign, rig)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ds"
         wall0 = time.perf_counter()
@@ -145,16 +152,58 @@ def measure(campaign: Campaign, drawn: Draw, strategy: str, fraction: float | No
         if outcome.status != "complete":
             raise RuntimeError(f"{drawn.describe()}, {strategy}: campaign {outcome.status}: {outcome.error}")
         ds, rig_time = load(out), measuring_time_s(out)
+        prefixes = budget_prefixes(out, table_rig_time_s or 0.0, fractions) if budget is not None else []
+    domain = domain_of(campaign, rig)
+    ref = InterpolatingPredictor(measured_domain(reference)) if reference is not None else None
+    if budget is None:
+        return [score(ds, drawn, strategy, None, rig_time, wall, domain, ref)], ds
+    results = []
+    for f, left_out, prefix_time in prefixes:
+        keep = np.array([pid not in left_out for pid in ds.point_id], bool)
+        results.append(score(subset(ds, keep), drawn, f"adaptive ×{f:g}", f, prefix_time, wall, domain, ref))
+    return results, ds
+
+
+def score(ds: Dataset, drawn: Draw, strategy: str, fraction: float | None, rig_time_s: float, wall_s: float,
+          domain: Domain, reference: InterpolatingPredictor | None) -> Result:
+    """The dataset's interpolant (`rig predict`'s) against the truth where the reference measures."""
     measured = np.stack([ds[c] for c in ("theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg")], axis=1)
     vset = validation_set(domain, seed=drawn.seed * 1000 + drawn.index, measured_deg=measured)
     predictor = interpolating_predictor(ds)
     truth = TruthPredictor(drawn.family, drawn.params)
-    ref = InterpolatingPredictor(measured_domain(reference)) if reference is not None else predictor
+    ref = reference or predictor
     err = representation_error(predictor, truth, vset, domain, reference=ref)
     inside = ~np.asarray(ref.predict(*vset.angles_deg.T).extrapolated, bool)
     worst = worst_pairs(predictor, truth, vset.angles_deg[inside], err.tau_per_sr, ds["theta_i_deg"])
-    return Result(drawn.name, drawn.family, drawn.seed, strategy if fraction is None else f"adaptive ×{fraction:g}",
-                  fraction, len(ds), rig_time, wall, err.row(), worst), ds
+    return Result(drawn.name, drawn.family, drawn.seed, strategy, fraction, len(ds), rig_time_s, wall_s, err.row(),
+                  worst)
+
+
+def subset(ds: Dataset, keep: np.ndarray) -> Dataset:
+    """The rows of `ds` where `keep`."""
+    rows = np.flatnonzero(keep)
+    return replace(ds, columns={c: v[keep] if isinstance(v, np.ndarray) else [v[k] for k in rows]
+                                for c, v in ds.columns.items()},
+                   point_id=[ds.point_id[k] for k in rows], flags=[ds.flags[k] for k in rows],
+                   time_utc=[ds.time_utc[k] for k in rows])
+
+
+def budget_prefixes(folder: Path, table_rig_time_s: float, fractions: Sequence[float]
+                    ) -> list[tuple[float, set[str], float]]:
+    """Per budget fraction f: the points of the adaptive batches that do not fit in f × the table's rig time
+    (planned, as the sampler counts it) and the rig time after warm-up at which the batches that fit were done
+    (when the next batch was chosen, after their closing E⊥ reading; the run's end after the last)."""
+    events = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
+    stable = next((float(e["rig_time_s"]) for e in events if e.get("event") == WARMUP_STABLE), 0.0)
+    batches = [e for e in events if e.get("event") == ADAPTIVE_BATCH]
+    total = measuring_time_s(folder)
+    out = []
+    for f in sorted(fractions):
+        n = sum(1 for b in batches if float(b["planned_rig_time_s"]) <= f * table_rig_time_s)
+        left_out = {pid for b in batches[n:] for pid in b["points"]}
+        done_s = float(batches[n]["rig_time_s"]) - stable if n < len(batches) else total
+        out.append((f, left_out, done_s))
+    return out
 
 
 def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Sequence[float] = BUDGET_FRACTIONS,
@@ -162,22 +211,21 @@ def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Seq
     """Every strategy on every draw as tasks on the client's workers (module docstring); the results in the order
     they finished and every failure, each naming its draw and seed."""
     def task(d: Draw, strategy: str, *extra: Any) -> Task:
-        label = f"{d.describe()}: {f'adaptive ×{extra[0]:g}' if strategy == 'adaptive' else strategy}"
-        return Task(label, measure, (campaign, d, strategy, *extra), {"draw": d.index, "seed": d.seed,
-                                                                      "family": d.family, "strategy": strategy})
+        what = f"adaptive ×{'/'.join(f'{f:g}' for f in fractions)}" if strategy == ADAPTIVE else strategy
+        return Task(f"{d.describe()}: {what}", measure, (campaign, d, strategy, *extra),
+                    {"draw": d.index, "seed": d.seed, "family": d.family, "strategy": strategy})
 
     by_name = {d.name: d for d in drawn}
 
-    def then(done: Task, outcome: tuple[Result, Dataset]) -> list[Task]:
-        result, ds = outcome
-        if result.strategy != TABLE:
+    def then(done: Task, outcome: tuple[list[Result], Dataset]) -> list[Task]:
+        results, ds = outcome
+        if results[0].strategy != TABLE:
             return []
-        d = by_name[result.draw]
-        return [task(d, OPTIMISED, None, None, ds)] + [task(d, "adaptive", f, result.rig_time_s, ds)
-                                                       for f in fractions]
+        d = by_name[results[0].draw]
+        return [task(d, OPTIMISED, (), None, ds), task(d, ADAPTIVE, tuple(fractions), results[0].rig_time_s, ds)]
 
     done, failures = run_tasks(client, [task(d, TABLE) for d in drawn], then, progress)
-    return [outcome[0] for _, outcome in done], failures
+    return [r for _, outcome in done for r in outcome[0]], failures
 
 
 def load_results(path: Path) -> list[Result]:

@@ -5,10 +5,12 @@ import pytest
 
 from repo_paths import TEST_CAMPAIGNS
 from rig.analysis.adaptive import (
+    MIN_BATCH_VIEWS,
     binned,
     choose_batch,
     represented_width_deg,
     rows_dataset,
+    series_batch,
     spread_by_gain,
 )
 from rig.analysis.predict import measured_domain
@@ -108,3 +110,24 @@ def test_only_a_batch_that_fits_in_what_is_left_is_chosen():
     fitting = batch_after(rows, measured, max_s=best.estimated_s - 1e-6)
     assert fitting is None or (fitting.estimated_s < best.estimated_s and fitting.series != best.series)
     assert batch_after(rows, measured, max_s=0.4) is None                   # not even the E⊥ reading fits
+
+
+def test_a_batch_is_a_part_of_the_pattern_only_where_the_rest_gains_little():
+    """Gain per second decides how much of a pattern a batch takes: where a few views carry the gain the batch is
+    their part of the pattern (the rest is left for later); where every view gains alike, the whole pattern."""
+    candidates = candidate_plan(CAMPAIGN, RIG)
+    points = [p for p in candidates.points if p.theta_i_deg == pytest.approx(40.0)]
+    start = build_plan(CAMPAIGN, RIG).points[-1].motors_deg
+
+    def batch(gain):
+        return series_batch(candidates, points[0].series, points, gain, 10.0, 0.1, start, RIG.axes, zones_of(RIG),
+                            len(points), 0.05, 0.5)
+
+    uniform = batch(np.ones(len(points)))
+    assert len(uniform.points) == len(points)
+    few = np.full(len(points), 1e-4)
+    few[:: max(1, len(points) // 4)] = 1.0
+    partial = batch(few)
+    assert MIN_BATCH_VIEWS <= len(partial.points) < len(points)
+    assert {p.point_id for p in partial.points} >= {points[k].point_id for k in np.flatnonzero(few == 1.0)}
+    assert partial.score_per_s > uniform.score_per_s * few.sum() / len(points)
