@@ -5,9 +5,11 @@ order of the plan and of brdf.csv. Both positioners start before either is waite
 the four axes run at once; a move may be started and waited for later (the engine starts
 the move to the next point before merging the frames of this one).
 
-After an alignment (rig.acquisition.alignment) the arm's positions are relative to the
-aligned zero: the engine's targets and read-backs are the aligned ones, and only the arm's
-commands and encoder readings carry the offset.
+With a geometry calibration (the rig file's `geometry.calibration_file`, docs/geometry-calibration.md)
+every axis's position is the physical angle, encoder reading + the axis's zero offset; after an
+alignment (rig.acquisition.alignment) the arm's positions are also relative to the aligned zero: the
+engine's targets and read-backs are the corrected ones, and only the commands and encoder readings
+carry the offsets.
 """
 
 from __future__ import annotations
@@ -39,13 +41,19 @@ class Mover:
         self.rig = rig
         #: Encoder readings (arm azimuth, arm polar) at the aligned zero; (0, 0) until aligned.
         self.arm_zero_deg: tuple[float, float] = (0.0, 0.0)
+        #: Each axis's zero offset from the geometry calibration (physical = encoder + offset); zeros without one.
+        calibration = rig.geometry.calibration
+        self.offsets_deg: Motors = calibration.zero_offsets_deg if calibration is not None else (0.0, 0.0, 0.0, 0.0)
         self.position: Motors = self.read_back()
         self.moving_to: Motors | None = None     # target of a move started and not yet waited for
 
     def read_back(self) -> Motors:
-        """The encoders' positions (the arm's relative to its aligned zero), the values the dataset records."""
+        """The encoders' positions plus the calibration's offsets (the arm's relative to its aligned zero), the
+        values the dataset records."""
         stage, arm = self.dev.stage.positions_deg(), self.dev.arm.positions_deg()
-        return stage[0], stage[1], arm[0] - self.arm_zero_deg[0], arm[1] - self.arm_zero_deg[1]
+        off = self.offsets_deg
+        return (stage[0] + off[0], stage[1] + off[1], arm[0] + off[2] - self.arm_zero_deg[0],
+                arm[1] + off[3] - self.arm_zero_deg[1])
 
     def align(self, arm_zero_deg: tuple[float, float]) -> None:
         """From now on the arm's positions are relative to `arm_zero_deg` (encoder readings)."""
@@ -67,8 +75,9 @@ class Mover:
         zone = path_crosses(self.position, target, zones_of(self.rig), self.rig.axes)
         if zone is not None:
             raise CollisionError(f"move from {self.position} to {target} (deg) would cross forbidden zone {zone!r}")
-        self.dev.stage.start_move(target[0], target[1])
-        self.dev.arm.start_move(target[2] + self.arm_zero_deg[0], target[3] + self.arm_zero_deg[1])
+        off = self.offsets_deg
+        self.dev.stage.start_move(target[0] - off[0], target[1] - off[1])
+        self.dev.arm.start_move(target[2] - off[2] + self.arm_zero_deg[0], target[3] - off[3] + self.arm_zero_deg[1])
         self.moving_to = target
 
     def move(self, target: Motors) -> None:

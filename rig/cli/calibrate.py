@@ -1,6 +1,7 @@
 """`rig calibrate`: the calibrations of the rig's devices, one subcommand each (`camera`: the radiometric
-calibration of a raw camera, docs/camera-calibration.md). This module parses the arguments, opens the device
-and prints; the procedures are rig.calibration's. A new subcommand registers in `add_subcommand`.
+calibration of a raw camera, docs/camera-calibration.md; `geometry`: the goniometer's, in
+rig.cli.calibrate_geometry). This module parses the arguments, opens the device and prints; the procedures
+are rig.calibration's. A new subcommand registers in `add_subcommand`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.calibration.radiometric import CalibrationError, measure
+from rig.cli.calibrate_geometry import add_geometry
 from rig.config.camera_calibration import CameraCalibration, CameraCalibrationError, save_camera_calibration
 from rig.config.files import ConfigFileError
 from rig.config.rigfile import RigConfig, load_rig_config
@@ -127,3 +129,4 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
     calibrate = subparsers.add_parser("calibrate", help="calibrate a device of the rig")
     which = calibrate.add_subparsers(dest="calibrate", required=True)
     add_camera(which)
+    add_geometry(which)

@@ -100,7 +100,7 @@ def add_geometry(which: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     geometry.add_argument("--rig", required=True, metavar="RIG.yaml", help="the rig whose goniometer is calibrated")
     geometry.add_argument("--out", required=True, metavar="GEOM.yaml", help="calibration file to write")
     geometry.add_argument("--board", metavar="BOARD.yaml",
-                          help="the board's layout (default: 9×7 squares of 20 mm, 15 mm DICT_4X4_50 markers)")
+                          help="the board's layout (default: 9×7 squares of 20 mm, 12 mm DICT_4X4_50 markers)")
     geometry.add_argument("--views", type=int, default=18, metavar="N", help="board views (default 18)")
     geometry.add_argument("--lamp-views", type=int, default=5, metavar="N",
                           help="views of the lamp's exit, the camera opposite the lamp (default 5)")

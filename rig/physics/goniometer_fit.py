@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from rig.physics.geometry import camera_frame, camera_unit, rotation_matrix, sample_frame
 
 #: The fitted parameters, in the order of `GoniometerFit.values`; angles in degrees, lengths in metres, the
@@ -38,10 +39,12 @@ SCALE = np.array([1e-3] * 7 + [1e-3] * 4 + [1.0] * 4 + [1e-2])
 #: OpenCV's camera frame (x right, y down, z ahead) from rig's sensor frame (x right, y up, backward).
 TO_OPENCV = np.diag([1.0, -1.0, -1.0])
 #: A smallest singular value of the scaled Jacobian below this fraction of the largest: a degenerate pose set.
-DEGENERATE = 1e-7
+DEGENERATE = 1e-6
 #: A view is rejected when its residual RMS exceeds this multiple of the median view's (and REJECT_FLOOR_PX).
 REJECT_FACTOR = 5.0
 REJECT_FLOOR_PX = 0.5
+#: A fit that has not converged after this many evaluations of the model will not (a handful of iterations do).
+MAX_EVALUATIONS = 40 * (len(PARAMETERS) + 1)
 #: The lamp centroids' scatter is taken as at least this (px), so that a few lucky ones do not outweigh the rest.
 LAMP_SIGMA_FLOOR_PX = 0.02
 
@@ -114,7 +117,7 @@ def camera_points(values: np.ndarray, motors_deg: np.ndarray, sample_points: np.
     p = _internal(values)
     m = np.radians(np.atleast_2d(np.asarray(motors_deg, float))) + p[:4]
     frame = sample_frame(m[:, 0], m[:, 1]) @ rotation_from_vector(np.array([p[4], p[5], 0.0]))
-    world = np.einsum("nij,mj->nmi", frame, np.asarray(sample_points, float) + p[8:11])
+    world = (np.asarray(sample_points, float) + p[8:11]) @ np.swapaxes(frame, 1, 2)            # (N, M, 3)
     return _to_camera(p, m, world)
 
 
@@ -122,7 +125,7 @@ def _to_camera(p: np.ndarray, m: np.ndarray, world: np.ndarray) -> np.ndarray:
     """GCS points (N, M, 3) in OpenCV's camera frame, the arm at the true angles m (N, 4; rad)."""
     cam = camera_frame(m[:, 2], m[:, 3]) @ rotation_from_vector(np.array([0.0, 0.0, p[6]]))
     centre = p[7] * camera_unit(m[:, 2], m[:, 3])
-    return np.einsum("ij,nkj,nmk->nmi", TO_OPENCV, cam, world - centre[:, None, :])
+    return (world - centre[:, None, :]) @ (cam @ TO_OPENCV)                                 # (Cᵀ)ᵀ = C
 
 
 def intrinsics(values: np.ndarray) -> Camera:
@@ -208,7 +211,11 @@ def fit(boards: list[BoardView], lamps: list[LampView], sample_points: np.ndarra
                            f"{typical:.3g} px (a pose the model does not explain: a slipped board, a mis-detection)")
         boards = [v for v in boards if v.label != worst]
         lamps = [v for v in lamps if v.label != worst]
-        _check_counts(boards, lamps)
+        start = values
+        try:
+            _check_counts(boards, lamps)
+        except FitError as exc:
+            raise FitError(f"{', '.join(rejected)} rejected ({rejected[worst]}); {exc}") from None
     covariance = _covariance(problem, values, sigmas)
     return GoniometerFit(values, covariance, sigmas[0], sigmas[1], rms, rejected)
 
@@ -240,7 +247,7 @@ def _check_counts(boards: list[BoardView], lamps: list[LampView]) -> None:
 
 def _solve(problem: _Problem, start: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     """Least squares, twice: with nominal weights, then with each group's own scatter."""
-    from scipy.optimize import least_squares     # here: rig files name this module's PARAMETERS, and load fast
+    from scipy.optimize import least_squares  # here: rig files name this module's PARAMETERS, and load fast
 
     _check_counts(problem.boards, problem.lamps)
     sigmas = (0.1, 0.05)
@@ -248,7 +255,7 @@ def _solve(problem: _Problem, start: np.ndarray) -> tuple[np.ndarray, tuple[floa
     for _ in range(2):
         _check_degenerate(_jacobian(problem, values, sigmas))
         result = least_squares(problem.weighted, values, args=(sigmas,), x_scale=_scale(values), method="lm",
-                               xtol=1e-12, ftol=1e-12)
+                               xtol=1e-12, ftol=1e-12, max_nfev=MAX_EVALUATIONS)
         if not result.success:
             raise FitError(f"the fit did not converge ({result.message}); check that the rig file's camera and "
                            "lamp distances are near the truth and the board lies with its rows along the sample x")
@@ -284,10 +291,10 @@ def _jacobian(problem: _Problem, values: np.ndarray, sigmas: tuple[float, float]
 def _check_degenerate(jac: np.ndarray) -> None:
     """FitError naming the parameters the views cannot tell apart (the scaled Jacobian's near-null direction)."""
     scaled = jac * _scale(np.zeros(len(PARAMETERS)))
-    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
-    if s[-1] >= DEGENERATE * s[0]:
+    eigenvalues, vectors = np.linalg.eigh(scaled.T @ scaled)           # the squared singular values, ascending
+    if eigenvalues[0] >= DEGENERATE ** 2 * eigenvalues[-1]:
         return
-    null = vt[-1] / np.max(np.abs(vt[-1]))
+    null = vectors[:, 0] / np.max(np.abs(vectors[:, 0]))
     names = [name for name, w in zip(PARAMETERS, null) if abs(w) > 0.2]
     raise FitError(f"degenerate pose set: the views cannot tell {', '.join(names)} apart; add poses that "
                    "turn the stage and arm over wider ranges of all four axes (docs/geometry-calibration.md)")
