@@ -207,9 +207,11 @@ def budget_prefixes(folder: Path, table_rig_time_s: float, fractions: Sequence[f
 
 
 def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Sequence[float] = BUDGET_FRACTIONS,
-          progress: Callable[[str], None] = lambda line: None) -> tuple[list[Result], list[Failure]]:
+          progress: Callable[[str], None] = lambda line: None,
+          record: Callable[[list[Result]], None] = lambda results: None) -> tuple[list[Result], list[Failure]]:
     """Every strategy on every draw as tasks on the client's workers (module docstring); the results in the order
-    they finished and every failure, each naming its draw and seed."""
+    they finished and every failure, each naming its draw and seed. `record` gets each task's results as it
+    finishes (a long study keeps what it has)."""
     def task(d: Draw, strategy: str, *extra: Any) -> Task:
         what = f"adaptive ×{'/'.join(f'{f:g}' for f in fractions)}" if strategy == ADAPTIVE else strategy
         return Task(f"{d.describe()}: {what}", measure, (campaign, d, strategy, *extra),
@@ -219,6 +221,7 @@ def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Seq
 
     def then(done: Task, outcome: tuple[list[Result], Dataset]) -> list[Task]:
         results, ds = outcome
+        record(results)
         if results[0].strategy != TABLE:
             return []
         d = by_name[results[0].draw]
@@ -229,6 +232,6 @@ def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Seq
 
 
 def load_results(path: Path) -> list[Result]:
-    """The results of a study's JSON (`rig bench sampling` writes sampling.json)."""
-    rows = json.loads(path.read_text())["results"]
+    """The results a study recorded as they finished (`rig bench sampling` writes results.jsonl, one per line)."""
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
     return [Result(**{**r, "worst": WorstPairs(**r["worst"])}) for r in rows]

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import rig
 from rig.bench import sampling as sampling_bench
-from rig.bench.draws import FAMILIES
+from rig.bench import sampling_report as report
+from rig.bench.distributed import study_client, workers_of
+from rig.bench.draws import FAMILIES, draws
 from rig.bench.error_vs_time import SETTINGS, format_table, machine, plot, run_settings
 from rig.config.campaign import load_campaign
 from rig.config.files import ConfigFileError
@@ -41,10 +43,6 @@ def cmd_error_vs_time(args: argparse.Namespace) -> int:
 def cmd_sampling(args: argparse.Namespace) -> int:
     """The sampling study on drawn samples, as dask tasks: per draw as it finishes, the distribution, PNG, JSON.
     Exit 1 when a task failed (each is listed with its draw and seed)."""
-    from rig.bench import sampling_report as report
-    from rig.bench.distributed import study_client, workers_of
-    from rig.bench.draws import draws
-
     path = Path(args.campaign)
     try:
         campaign = load_campaign(path)
@@ -53,8 +51,19 @@ def cmd_sampling(args: argparse.Namespace) -> int:
     unknown = [f for f in args.families if f not in FAMILIES]
     if unknown:
         return fail(f"unknown family {unknown[0]!r}; choose from {', '.join(FAMILIES)}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.summarise:
+        results, failures, wall = sampling_bench.load_results(out / "results.jsonl"), [], float("nan")
+        return _print_study(results, failures, wall, out)
     drawn = draws(args.seed, args.draws, args.first, tuple(args.families))
-    with study_client(args.scheduler, args.workers) as client:
+    recorded = (out / "results.jsonl").open("w")
+
+    def record(results: list) -> None:
+        recorded.write("".join(json.dumps(asdict(r)) + "\n" for r in results))
+        recorded.flush()
+
+    with recorded, study_client(args.scheduler, args.workers) as client:
         print(f"machine : {machine()}\ncampaign: {path.name} (the table; the adaptive runs' candidate domain); "
               f"simulated rig; draws {args.first}–{args.first + args.draws - 1} of seed {args.seed}; budgets "
               f"{', '.join(f'{f:g}' for f in args.budgets)} × the table's rig time; "
@@ -63,19 +72,22 @@ def cmd_sampling(args: argparse.Namespace) -> int:
             print(f"  {d.describe()}", flush=True)
         wall0 = time.perf_counter()
         results, failures = sampling_bench.study(client, campaign, drawn, args.budgets,
-                                                 progress=lambda line: print(line, flush=True))
+                                                 progress=lambda line: print(line, flush=True), record=record)
         wall = time.perf_counter() - wall0
-    for group in report.by_draw(results).values():
-        print("\n" + report.format_draw(group) + "\n" + report.verdict(group))
-    print("\n" + report.distribution(results, failures) + f"\nwall time of the study: {wall:.0f} s")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    if results:
-        report.plot(results, out / "sampling.png")
     (out / "sampling.json").write_text(json.dumps(
         {"machine": machine(), "campaign": str(path), "seed": args.seed, "first": args.first, "wall_s": wall,
          "draws": [asdict(d) for d in drawn], "results": [asdict(r) for r in results],
          "failures": [asdict(f) for f in failures]}, indent=2))
+    return _print_study(results, failures, wall, out)
+
+
+def _print_study(results: list, failures: list, wall: float, out: Path) -> int:
+    """Per draw, the distribution, the plot; exit 1 when a task failed."""
+    for group in report.by_draw(results).values():
+        print("\n" + report.format_draw(group) + "\n" + report.verdict(group))
+    print("\n" + report.distribution(results, failures) + f"\nwall time of the study: {wall:.0f} s")
+    if results:
+        report.plot(results, out / "sampling.png")
     print(f"plot and figures in {out}")
     return EXIT_FAILED if failures else EXIT_OK
 
@@ -105,5 +117,8 @@ def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParse
                      help="dask workers of the LocalCluster (default one per core)")
     smp.add_argument("--scheduler", metavar="ADDRESS", default=None,
                      help="run on the dask scheduler at ADDRESS (host:port) instead of a LocalCluster")
-    smp.add_argument("--out", default="runs/bench-sampling", help="folder for the PNG and JSON")
+    smp.add_argument("--out", default="runs/bench-sampling",
+                     help="folder for the PNG, sampling.json and results.jsonl (each task's results as it finishes)")
+    smp.add_argument("--summarise", action="store_true",
+                     help="run nothing: print and plot the results.jsonl already in --out (a study cut short)")
     smp.set_defaults(func=cmd_sampling)
