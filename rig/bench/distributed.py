@@ -26,6 +26,7 @@ class Task:
     fn: Callable[..., Any]
     args: tuple[Any, ...] = ()
     meta: dict[str, Any] = field(default_factory=dict)
+    priority: int = 0       # larger runs first (dask's priority): a study finishes its draws in turn
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ def run_tasks(client: Any, tasks: Iterable[Task], then: Callable[[Task, Any], It
     submitted: dict[str, Task] = {}
 
     def submit(task: Task) -> Any:
-        future = client.submit(task.fn, *task.args, pure=False)
+        future = client.submit(task.fn, *task.args, pure=False, priority=task.priority)
         submitted[future.key] = task
         return future
 

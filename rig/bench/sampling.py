@@ -15,7 +15,8 @@ after the lamp is stable (warm-up is the same for every strategy). Per draw: the
 p95 and road-quantity errors reach the table's (`reached`), and why not where none does (`why_not`).
 
 Every campaign is a dask.distributed task (rig.bench.distributed): a draw's table run first, and when it is
-done the draw's other strategies, which need its rig time (the budgets) and its measured domain (the scoring).
+done the draw's other strategies, which need its rig time (the budgets) and its measured domain (the scoring);
+earlier draws go first, so that a study cut short has whole draws.
 """
 
 from __future__ import annotations
@@ -215,7 +216,8 @@ def study(client: Any, campaign: Campaign, drawn: Sequence[Draw], fractions: Seq
     def task(d: Draw, strategy: str, *extra: Any) -> Task:
         what = f"adaptive ×{'/'.join(f'{f:g}' for f in fractions)}" if strategy == ADAPTIVE else strategy
         return Task(f"{d.describe()}: {what}", measure, (campaign, d, strategy, *extra),
-                    {"draw": d.index, "seed": d.seed, "family": d.family, "strategy": strategy})
+                    {"draw": d.index, "seed": d.seed, "family": d.family, "strategy": strategy},
+                    priority=-10 * d.index + (strategy != TABLE))
 
     by_name = {d.name: d for d in drawn}
 
