@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from matplotlib import colormaps
+from matplotlib import colormaps, rc_context
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
@@ -111,7 +111,7 @@ def _draw_polar(ax, signed, f, u, curve, theta_i) -> None:
     ax.text(np.radians(45), 1.2 * r_max, "retro side", ha="left", color=RETRO_TEXT)
     ax.text(np.radians(-45), 1.2 * r_max, "specular side", ha="right", color=SPECULAR_TEXT)
     ax.set_xlabel("radius: f_r [sr⁻¹] (linear); angle: viewing angle in the plane [deg]", labelpad=-40)
-    ax.figure.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.9), fontsize=9)
+    ax.figure.legend(*ax.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.88), fontsize=10)
 
 
 def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
@@ -135,7 +135,7 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
     ax.text(0.25, 1.01, "specular hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=SPECULAR_TEXT)
     ax.text(0.75, 1.01, "retro hemisphere", transform=ax.transAxes, ha="center", va="bottom", color=RETRO_TEXT)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=10)     # below the axis title
 
 
 def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
@@ -151,12 +151,13 @@ def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
     signed, off, f, u = (a[keep][order] for a in (signed, off, ds["brdf_per_sr"][rows], ds["u_brdf_per_sr"][rows]))
     wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
     curve = _plane_curve(model, wi, t) if model else None
-    fig = Figure(figsize=(14, 5.8))
-    fig.suptitle(f"{ds.sample_id()} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points within "
-                 f"{tol_deg:g}° of the plane of incidence", fontsize=12)
-    _draw_polar(fig.add_axes((0.045, 0.04, 0.36, 0.86), projection="polar"), signed, f, u, curve, theta_i)
-    _draw_cartesian(fig.add_axes((0.5, 0.1, 0.44, 0.78)), signed, f, u, off, tol_deg, curve, theta_i)
-    fig.savefig(out, dpi=DPI)
+    with rc_context({"font.size": 11}):          # the report shows it at about two thirds of its width
+        fig = Figure(figsize=(14, 6.0))
+        fig.suptitle(f"{ds.sample_id()} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points "
+                     f"within {tol_deg:g}° of the plane of incidence", fontsize=13)
+        _draw_polar(fig.add_axes((0.045, 0.06, 0.36, 0.8), projection="polar"), signed, f, u, curve, theta_i)
+        _draw_cartesian(fig.add_axes((0.5, 0.3, 0.42, 0.58)), signed, f, u, off, tol_deg, curve, theta_i)
+        fig.savefig(out, dpi=DPI, bbox_inches="tight", pad_inches=0.2)
     return out
 
 
