@@ -1,22 +1,25 @@
-"""Adaptive sampling: the next batch of an adaptive campaign, where the dataset is least certain per second.
+"""Adaptive sampling: the next batch of an adaptive campaign, where it reduces the dataset's error most per second.
 
-After the first pass (rig.planning.candidates), each batch is up to `batch_points` views at one incidence (a
-series: the stage moves once, E⊥ is read once); by default a batch holds the incidence's whole viewing pattern,
-which is what serves the interpolant best: the patterns' rings about retroreflection and the mirror direction
-follow the lobes, and a part of a pattern leaves an incidence with a lopsided hull (on the paper's RM1, 48-view
-batches spread over 16 incidences gave a p95 error 3× that of whole patterns at 13, in the same rig time).
+After the first pass (rig.planning.candidates), each batch is views at one incidence (a series: the stage moves
+once, E⊥ is read once). For every unmeasured candidate the dataset's interpolant (rig.analysis.predict, the
+predictor `rig predict` and the validation metric use), calibrated as `rig predict` calibrates it (its alignment
+and between-incidence u from leave-one-incidence-out errors, rig.analysis.held_out.calibrate), gives its relative
+uncertainty u/(f + τ) (τ as in rig.analysis.validation), at least `EXTRAPOLATED_U_REL` outside the measured θi
+range. Measuring a view removes about that much error where the interpolant reads from it: the gain of a view is
+u² (in the log-relative units of the validation error) times the span of θi its incidence stands for
+(`represented_width_deg`: a new incidence in a wide gap serves more directions than one between close
+neighbours). A calibrated u is what makes this an expected error reduction rather than a ranking: where the
+held-out incidences show the between-incidence u too small, it is scaled up, and the sampler goes there.
 
-For every unmeasured candidate the dataset's interpolant (rig.analysis.predict.InterpolatingPredictor, the same
-predictor `rig predict` and the validation metric use) gives its relative uncertainty u/(f + τ) (τ as in
-rig.analysis.validation), its error between incidences included, and at least `EXTRAPOLATED_U_REL` outside the
-measured θi range. The gain of a view is that squared (the variance it removes, in the log-relative units of the
-error metric), times the span of θi its incidence stands for (`represented_width_deg`: a new incidence in a wide gap
-serves more directions than one between close neighbours); the incidence's batch is its views of largest gain, each
-taken view damping the gain of candidates within `SPREAD_RADIUS` of it in the projected disk. The batch chosen is
-the one of largest gain per second of rig time: the moves from where the axes stand through the batch in travel
-order (rig.planning.ordering), a capture per point and an E⊥ reading per batch. This is the "uncertainty per cost"
-criterion the planning literature suggests (Vávra & Filip 2017 adapt 1-D slices by their error; none of the prior
-work prices the instrument's travel).
+The incidence's views are taken in order of gain, each taken view damping the gain of candidates within
+`SPREAD_RADIUS` of it in the projected disk; the batch is the whole of that choice or its first half or
+quarter, whichever gives the most gain per second (`series_batch`): the stage move and the E⊥ reading are paid
+once per batch and each view adds its capture and the arm's travel, so a pattern is measured whole where the
+reconstruction needs it whole, and in part where its other views would gain little. The batch chosen is the one
+of largest gain per second of rig time from where the axes stand (moves in travel order, rig.planning.ordering;
+a capture per point; an E⊥ reading per batch). This is the "uncertainty per cost" criterion the planning
+literature suggests (Vávra & Filip 2017 adapt 1-D slices by their error; none of the prior work prices the
+instrument's travel).
 
 Gains and scores are compared in bins of `SCORE_BIN_LOG2` (a factor of 2^0.25), ties going to the lower series
 and view: a point measured again after a resume differs from its first measurement by its noise, and that
