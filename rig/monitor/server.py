@@ -9,11 +9,16 @@ that address (a web page elsewhere cannot reach the monitor through DNS rebindin
 other address a random token, printed at start, is required as `?token=` on every request;
 it is compared in constant time. The page served with a token names its script and style sheet
 with the token, so that a browser given the printed address loads them too.
+
+First paint: the page comes with the folder's state as of the request (a JSON data block, which the
+CSP does not execute, and the phase and counts in the text), so that it shows the run as soon as it
+loads, before any poll (a headless screenshot taken at load showed "CONNECTING…").
 """
 
 from __future__ import annotations
 
 import hmac
+import html
 import io
 import ipaddress
 import json
@@ -67,6 +72,22 @@ def static_file(route: str, token: str | None) -> bytes:
                 name = other.lstrip("/")
                 body = body.replace(f'"{name}"'.encode(), f'"{name}?token={quote(token, safe="")}"'.encode())
     return body
+
+
+def first_paint(page: bytes, state: bytes) -> bytes:
+    """The page with `state` (an /api/state answer) in it: as a data block for the script, and its phase and
+    counts as text."""
+    snapshot = json.loads(state)
+    progress = snapshot["progress"]
+    fills = {b'<span class="phase" id="phase">connecting\xe2\x80\xa6</span>': ("phase", snapshot["phase"]),
+             b'<span id="done">0</span>': ("done", str(progress["done"])),
+             b'<span id="to-measure">?</span>': ("to-measure", "?" if progress["to_measure"] is None
+                                                  else str(progress["to_measure"]))}
+    for old, (name, value) in fills.items():
+        attributes = ' class="phase"' if name == "phase" else ""
+        page = page.replace(old, f'<span{attributes} id="{name}">{html.escape(value)}</span>'.encode())
+    block = b'<script id="initial-state" type="application/json">' + state.replace(b"<", b"\\u003c") + b"</script>"
+    return page.replace(b"</body>", block + b"\n</body>")
 
 
 class Monitor:
@@ -137,7 +158,10 @@ class Handler(BaseHTTPRequestHandler):
         if refusal is not None:
             self._refuse(HTTPStatus.FORBIDDEN, refusal)
         elif url.path in STATIC:
-            self._send(HTTPStatus.OK, static_file(url.path, self.token), STATIC[url.path][1])
+            body = static_file(url.path, self.token)
+            if url.path == "/":
+                body = first_paint(body, self.monitor.snapshot(0, None))
+            self._send(HTTPStatus.OK, body, STATIC[url.path][1])
         elif url.path == "/api/state":
             try:
                 since = int(query.get("since", ["0"])[0])

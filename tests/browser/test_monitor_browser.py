@@ -12,6 +12,7 @@ are bounded by rig_process.HANG_S as a hang guard, never asserted on.
 from __future__ import annotations
 
 import os
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -166,6 +167,30 @@ def test_with_a_token_the_printed_address_gives_a_working_page(browser, tmp_path
         look_until(browser, None, "the warning", lambda: "events.jsonl: a FIFO" in shown(browser, "warnings"))
         urls = requested_urls(browser)
         assert urls and all(u.startswith(url.split("?")[0]) and f"token={token}" in u for u in urls), urls
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_the_page_shows_the_run_as_soon_as_it_loads(browser, tmp_path):
+    """Issue 35: a screenshot taken at load showed "CONNECTING…" and empty plots; the server now puts the state in
+    the page. The series buttons say θi and φi (they said "θi 70.0°" for three series)."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "monitor"))       # the monitor tests' dataset folders
+    from test_folder import Folder, warm
+
+    f = Folder(tmp_path / "run")
+    warm(f)
+    f.row("01-001", 105.0, theta_o=30.0, phi_o=180.0)
+    f.row("01-002", 106.0, theta_o=40.0, phi_o=90.0)
+    server = make_server(f.path, "127.0.0.1", 0, None)
+    threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    try:
+        browser.get(page_url(server, None))                    # returns at the load event: no waiting after it
+        assert shown(browser, "phase") == "measuring" and shown(browser, "done") == "2"
+        assert int(browser.find_element("id", "polar").get_attribute("data-drawn")) == 2
+        assert inked_pixels(browser, "illuminance") > 500
+        labels = [b.text for b in browser.find_elements("css selector", "#series-picker button")]
+        assert "θi 30° φi 0°" in labels, labels
     finally:
         server.shutdown()
         server.server_close()

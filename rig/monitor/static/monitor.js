@@ -1,17 +1,20 @@
-// rig monitor: polls /api/state (incremental: ?since=N) and draws the page. No library, no request elsewhere.
+// rig monitor: draws the state the server put in the page (#initial-state), then polls /api/state (incremental:
+// ?since=N). No library, no request elsewhere.
 "use strict";
 (() => {
   const POLL_MS = 1000;
   const MAX_EVENTS = 200;
   const token = new URLSearchParams(location.search).get("token");
-  const st = { generation: null, next: 0, points: new Map(), ill: [], lamp: [], events: [],
+  const st = { generation: null, next: 0, points: new Map(), ill: [], lamp: [], warm: [], events: [],
                chosen: null, lastSeries: null, eventsShown: -1 };
   const $ = (id) => document.getElementById(id);
   const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
   const INK = "#1d2330", GRID = "#e5e7eb", MUTED = "#6b7280", BLUE = "#2563eb", ORANGE = "#ea580c";
+  const RUNS = [ORANGE, "#7c3aed", "#0d9488", "#be123c", "#4d7c0f"];   // E⊥ of run 1, 2, … (a resume starts one)
+  const runColour = (r) => RUNS[(r || 0) % RUNS.length];
 
   function reset() {
-    st.points.clear(); st.ill = []; st.lamp = []; st.events = []; st.next = 0; st.eventsShown = -1;
+    st.points.clear(); st.ill = []; st.lamp = []; st.warm = []; st.events = []; st.next = 0; st.eventsShown = -1;
   }
 
   function apply(changes) {
@@ -20,9 +23,17 @@
       else if (c.k === "d") st.points.delete(c.id);
       else if (c.k === "e") st.ill.push(c);
       else if (c.k === "l") st.lamp.push(c);
+      else if (c.k === "w") st.warm.push(c);
       else if (c.k === "ev") st.events.push(c);
     }
     if (st.events.length > MAX_EVENTS) st.events.splice(0, st.events.length - MAX_EVENTS);
+  }
+
+  function take(s) {
+    if (s.generation !== st.generation) { reset(); st.generation = s.generation; }
+    apply(s.changes);
+    st.next = s.next;
+    render(s);
   }
 
   async function poll() {
@@ -32,11 +43,7 @@
     try {
       const r = await fetch("api/state?" + q.toString(), { cache: "no-store" });
       if (!r.ok) throw new Error(r.status + ": " + (await r.text()));
-      const s = await r.json();
-      if (s.generation !== st.generation) { reset(); st.generation = s.generation; }
-      apply(s.changes);
-      st.next = s.next;
-      render(s);
+      take(await r.json());
       $("connection").textContent = "";
     } catch (e) {
       $("connection").textContent = "· no answer from the monitor (" + e.message + "); retrying";
@@ -52,6 +59,7 @@
     return h + ":" + String(m).padStart(2, "0") + ":" + String(sec).padStart(2, "0");
   }
   const num = (x, d = 3) => (x === null || x === undefined ? "–" : Number(x).toPrecision(d));
+  const angle = (x) => String(Number(Number(x).toFixed(1)));          // 70 → "70", 22.5 → "22.5"
   function text(id, value) { const el = $(id); if (el.textContent !== value) el.textContent = value; }
   function cell(tr, value, cls) {
     const td = document.createElement("td"); td.textContent = value; if (cls) td.className = cls; tr.appendChild(td);
@@ -66,7 +74,7 @@
                    s.software ? "software: rig " + s.software : null].filter(Boolean).join(" · "));
     $("state").dataset.phase = s.phase;
     text("phase", s.phase);
-    text("detail", s.detail || "");
+    text("detail", s.warmup ? warmupWords(s.warmup) : (s.detail || ""));
     const w = s.warnings || [];        // lines skipped and files not read (docs/monitor.md): said, never hidden
     text("warnings", w.length ? "Not followed: " + w.slice(-3).join(" · ") +
          (s.bad_lines > 3 ? " (" + s.bad_lines + " lines skipped in all)" : "") : "");
@@ -76,9 +84,10 @@
     $("bar").style.width = p.to_measure ? Math.min(100, (100 * p.done) / p.to_measure).toFixed(1) + "%" : "0";
     text("progress-note", (p.to_measure ? ((100 * p.done) / p.to_measure).toFixed(0) + " % · " : "") +
          p.skipped + " skipped by the plan · " + p.pending + " waiting for their E⊥ bracket");
-    text("eta-wall", duration(s.eta.wall_s));
+    text("eta-wall", s.eta.wall_s !== null ? duration(s.eta.wall_s) : s.eta.rig_s !== null ? "≈ " + duration(s.eta.rig_s) : "–");
     text("eta-rig", s.eta.rig_s !== null ? duration(s.eta.rig_s) + " of rig time" +
-         (s.eta.wall_per_rig ? " · " + num(s.eta.wall_per_rig, 2) + " wall s per rig s" : "") : "");
+         (s.eta.wall_per_rig ? " · " + num(s.eta.wall_per_rig, 2) + " wall s per rig s"
+          : s.warmup ? ", the warm-up's rest included" : "") : "");
     text("rig-time", duration(s.rig_time_s));
     text("started", s.created_utc ? "started " + s.created_utc.replace("T", " ") : "");
     if (s.last_utc) {
@@ -95,6 +104,16 @@
     drawLamp();
     events();
     tables(s);
+  }
+
+  // The warm-up in words: elapsed, expected (and from where), the last check's reading and change, the rest.
+  function warmupWords(w) {
+    const parts = ["lamp on " + duration(w.elapsed_s) + (w.expected_s !== null ? " of ≈ " + duration(w.expected_s) +
+                   " expected" : "")];
+    if (w.last) parts.push("E⊥ " + num(w.last.lx, 5) + " lx, changed " + (100 * w.last.change).toFixed(2) +
+                           " % per check (steady below " + (100 * w.last.stable_below).toFixed(2) + " %)");
+    if (w.left_s !== null) parts.push("≈ " + duration(w.left_s) + " left");
+    return parts.join(" · ") + (w.source ? " — expected from " + w.source : "");
   }
 
   function chosenSeries() { return st.chosen !== null ? st.chosen : st.lastSeries; }
@@ -124,7 +143,7 @@
     add("follow", null, "the series being measured");
     for (const i of indices) {
       const x = (s.series || []).find((y) => y.index === i);
-      add(x ? "θi " + num(x.theta_i_deg, 3) + "°" : "s" + i, i, "series " + i);
+      add(x ? "θi " + angle(x.theta_i_deg) + "° φi " + angle(x.phi_i_deg) + "°" : "s" + i, i, "series " + i);
     }
   }
 
@@ -218,6 +237,39 @@
     if (stroke) { ctx.strokeStyle = stroke; ctx.lineWidth = 0.8; ctx.stroke(); }
   }
 
+  // A legend at (x, y): a marker (a ring, or a dot) and a label per entry, on one row.
+  function legend(ctx, x, y, entries, ring) {
+    ctx.textAlign = "left"; ctx.textBaseline = "middle"; ctx.lineWidth = 1.5;
+    for (const [c, label, ownRing] of entries) {
+      if (ring || ownRing) { ctx.strokeStyle = c; ctx.beginPath(); ctx.arc(x + 6, y + 6, 5, 0, 2 * Math.PI); ctx.stroke(); }
+      else dot(ctx, x + 6, y + 6, 3, c);
+      ctx.fillStyle = INK; ctx.fillText(label, x + 15, y + 6);
+      x += 22 + ctx.measureText(label).width;
+    }
+  }
+
+  // Separate runs (a resume starts one): a dotted line at each later run's first reading.
+  function runStarts(ctx, box, X, pts) {
+    ctx.save(); ctx.setLineDash([2, 3]); ctx.strokeStyle = MUTED; ctx.fillStyle = MUTED;
+    ctx.textAlign = "left"; ctx.textBaseline = "top";
+    pts.forEach((q, i) => {
+      if (i && q.r !== pts[i - 1].r) {
+        ctx.beginPath(); ctx.moveTo(X(q.t), box.y); ctx.lineTo(X(q.t), box.y + box.h); ctx.stroke();
+        ctx.fillText("resumed", X(q.t) + 3, box.y + 2);
+      }
+    });
+    ctx.restore();
+  }
+
+  // Least-squares slope of E⊥ against rig time, relative to the mean, per hour; null with < 2 times.
+  function trend(pts) {
+    if (pts.length < 2) return null;
+    const mt = pts.reduce((a, q) => a + q.t, 0) / pts.length, my = pts.reduce((a, q) => a + q.lx, 0) / pts.length;
+    let sxy = 0, sxx = 0;
+    for (const q of pts) { sxy += (q.t - mt) * (q.lx - my); sxx += (q.t - mt) * (q.t - mt); }
+    return sxx > 0 ? { slope: sxy / sxx, mt, my, perHour: (3600 * sxy) / sxx / my } : null;
+  }
+
   // -- the plots --------------------------------------------------------------------------------
   function drawPlane(series, inc) {
     const canvas = $("plane"), { ctx, w, h } = surface(canvas);
@@ -251,26 +303,30 @@
     pts.forEach((q, i) => (i ? ctx.lineTo(X(q.x), Y(Math.log10(q.f))) : ctx.moveTo(X(q.x), Y(Math.log10(q.f)))));
     ctx.stroke();
     for (const q of pts) dot(ctx, X(q.x), Y(Math.log10(q.f)), 3.5, BLUE, "#fff");
-    ctx.fillStyle = INK; ctx.textAlign = "left"; ctx.textBaseline = "bottom";
-    ctx.fillText(pts.length + " views in the plane" + (inc ? " · θi = " + num(inc.ti, 3) + "°" : ""), box.x + 6, box.y + box.h - 4);
+    const note = pts.length + " views in the plane" + (inc ? " · θi = " + num(inc.ti, 3) + "°" : "");
+    ctx.textAlign = "left"; ctx.textBaseline = "bottom"; ctx.lineWidth = 3; ctx.strokeStyle = "rgba(255,255,255,.9)";
+    ctx.strokeText(note, box.x + 6, box.y + box.h - 4); ctx.fillStyle = INK; ctx.fillText(note, box.x + 6, box.y + box.h - 4);
   }
 
   function drawPolar(series, inc) {
     const canvas = $("polar"), { ctx, w, h } = surface(canvas);
     const pts = [...st.points.values()].filter((q) => q.s === series && q.f > 0);
     canvas.dataset.drawn = String(pts.length);
-    const R = Math.min(w - 96, h - 24) / 2, cx = 12 + R, cy = h / 2;
-    ctx.strokeStyle = GRID; ctx.fillStyle = MUTED; ctx.lineWidth = 1; ctx.textAlign = "left"; ctx.textBaseline = "bottom";
-    for (const t of [30, 60, 90]) {
-      ctx.beginPath(); ctx.arc(cx, cy, (R * t) / 90, 0, 2 * Math.PI); ctx.stroke();
-      ctx.fillText("θo " + t + "°", cx + (R * t) / 90 * 0.71 + 2, cy + (R * t) / 90 * 0.71 + 12);
-    }
+    // φo labels outside the circle, θo ring labels over the points with a halo: nothing sits under a point.
+    const R = Math.min(w - 140, h - 44) / 2, cx = 34 + R, cy = h / 2;
+    ctx.strokeStyle = GRID; ctx.lineWidth = 1;
+    for (const t of [30, 60, 90]) { ctx.beginPath(); ctx.arc(cx, cy, (R * t) / 90, 0, 2 * Math.PI); ctx.stroke(); }
     for (let a = 0; a < 360; a += 90) {
       const r = (a * Math.PI) / 180;
       ctx.beginPath(); ctx.moveTo(cx, cy); ctx.lineTo(cx + R * Math.cos(r), cy - R * Math.sin(r)); ctx.stroke();
     }
-    ctx.textAlign = "center"; ctx.textBaseline = "middle";
-    ctx.fillText("φo 0°", cx + R - 16, cy - 8); ctx.fillText("φo 90°", cx + 24, cy - R + 8);
+    ctx.fillStyle = MUTED;
+    for (const [label, x, y, align, base] of [["φo 0°", cx + R + 4, cy, "left", "middle"],
+        ["90°", cx, cy - R - 3, "center", "bottom"], ["180°", cx - R - 4, cy, "right", "middle"],
+        ["270°", cx, cy + R + 3, "center", "top"]]) {
+      ctx.textAlign = align; ctx.textBaseline = base; ctx.fillText(label, x, y);
+    }
+    legend(ctx, 4, 4, [[ORANGE, "lamp (θi, φi)"], [BLUE, "mirror"]], true);
     const at = (t, p) => [cx + (R * t) / 90 * Math.cos((p * Math.PI) / 180), cy - (R * t) / 90 * Math.sin((p * Math.PI) / 180)];
     if (inc) {
       const [lx, ly] = at(inc.ti, inc.pi), [mx, my] = at(inc.ti, inc.pi + 180);
@@ -282,6 +338,11 @@
     const t = (v) => (hi > lo ? (v - lo) / (hi - lo) : 0.5);
     pts.sort((a, b) => a.f - b.f);
     for (const q of pts) { const [x, y] = at(q.to, q.po); dot(ctx, x, y, 4.5, colour(t(Math.log10(q.f))), "rgba(0,0,0,.35)"); }
+    ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.lineWidth = 3; ctx.strokeStyle = "rgba(255,255,255,.85)";
+    for (const t of [30, 60, 90]) {
+      const x = cx + (R * t) / 90 * 0.71 + 2, y = cy + (R * t) / 90 * 0.71 + 1;
+      ctx.strokeText("θo " + t + "°", x, y); ctx.fillStyle = MUTED; ctx.fillText("θo " + t + "°", x, y);
+    }
     const bx = w - 64, by = 22, bh = h - 46;
     for (let i = 0; i < bh; i++) { ctx.fillStyle = colour(1 - i / bh); ctx.fillRect(bx, by + i, 12, 1.5); }
     ctx.strokeStyle = "#9ca3af"; ctx.strokeRect(bx, by, 12, bh);
@@ -296,21 +357,44 @@
              fmt: (v) => String(Number((v / unit).toPrecision(6))), label: "rig time [" + { 3600: "h", 60: "min", 1: "s" }[unit] + "]" };
   }
 
+  // E⊥ readings (± u) and the warm-up's checks on the campaign's rig-time axis; each run its own line, colour
+  // and least-squares trend (a resume may follow a night with the lamp off: no line is drawn across it).
   function drawIlluminance() {
     const canvas = $("illuminance"), { ctx, w, h } = surface(canvas);
     const pts = st.ill.filter((q) => q.t !== null && q.lx !== null);
-    canvas.dataset.drawn = String(pts.length);
-    if (!pts.length) { empty(ctx, w, h, "no E⊥ reading yet"); return; }
-    const xr = range(pts.map((q) => q.t), 0.03);
-    const yr = range(pts.flatMap((q) => [q.lx - (q.u || 0), q.lx + (q.u || 0)]), 0.1);
+    const warm = st.warm.filter((q) => q.t !== null && q.lx !== null);
+    canvas.dataset.drawn = String(pts.length + warm.length);
+    if (!pts.length && !warm.length) { empty(ctx, w, h, "no E⊥ reading yet"); return; }
+    const all = pts.concat(warm);
+    const xr = range(all.map((q) => q.t), 0.03);
+    const yr = range(all.flatMap((q) => [q.lx - (q.u || 0), q.lx + (q.u || 0)]), 0.1);
     const tt = timeTicks(xr[0], xr[1]);
-    const { X, Y } = axes(ctx, { x: 64, y: 8, w: w - 84, h: h - 48 }, xr, yr,
-      { xticks: tt.ticks, xfmt: tt.fmt, xlabel: tt.label, ylabel: "E⊥ [lx]" });
+    const box = { x: 64, y: 22, w: w - 84, h: h - 62 };
+    const { X, Y } = axes(ctx, box, xr, yr, { xticks: tt.ticks, xfmt: tt.fmt, xlabel: tt.label, ylabel: "E⊥ [lx]" });
+    runStarts(ctx, box, X, pts);
     ctx.strokeStyle = "#9ca3af";
     for (const q of pts) if (q.u) { ctx.beginPath(); ctx.moveTo(X(q.t), Y(q.lx - q.u)); ctx.lineTo(X(q.t), Y(q.lx + q.u)); ctx.stroke(); }
-    ctx.strokeStyle = "rgba(234,88,12,.5)"; ctx.beginPath();
-    pts.forEach((q, i) => (i ? ctx.lineTo(X(q.t), Y(q.lx)) : ctx.moveTo(X(q.t), Y(q.lx)))); ctx.stroke();
-    for (const q of pts) dot(ctx, X(q.t), Y(q.lx), 2.5, ORANGE);
+    for (const q of warm) { ctx.strokeStyle = MUTED; ctx.lineWidth = 1; ctx.beginPath(); ctx.arc(X(q.t), Y(q.lx), 3, 0, 2 * Math.PI); ctx.stroke(); }
+    const runs = [...new Set(pts.map((q) => q.r || 0))];
+    const entries = [];
+    for (const r of runs) {
+      const run = pts.filter((q) => (q.r || 0) === r), c = runColour(r);
+      ctx.strokeStyle = c; ctx.globalAlpha = 0.5; ctx.lineWidth = 1; ctx.beginPath();
+      run.forEach((q, i) => (i ? ctx.lineTo(X(q.t), Y(q.lx)) : ctx.moveTo(X(q.t), Y(q.lx)))); ctx.stroke();
+      ctx.globalAlpha = 1;
+      for (const q of run) dot(ctx, X(q.t), Y(q.lx), 2.5, c);
+      const fit = trend(run);
+      if (fit) {
+        const t0 = run[0].t, t1 = run[run.length - 1].t;
+        ctx.setLineDash([5, 3]); ctx.strokeStyle = c; ctx.beginPath();
+        ctx.moveTo(X(t0), Y(fit.my + fit.slope * (t0 - fit.mt))); ctx.lineTo(X(t1), Y(fit.my + fit.slope * (t1 - fit.mt)));
+        ctx.stroke(); ctx.setLineDash([]);
+      }
+      entries.push([c, (runs.length > 1 ? "run " + (r + 1) + " " : "E⊥ ") +
+                    (fit ? "trend " + (100 * fit.perHour >= 0 ? "+" : "") + (100 * fit.perHour).toFixed(2) + " %/h" : "")]);
+    }
+    if (warm.length) entries.push([MUTED, "warm-up checks", true]);
+    legend(ctx, box.x, 2, entries, false);
   }
 
   function drawLamp() {
@@ -320,14 +404,19 @@
     canvas.dataset.drawn = String(cur.length + volt.length);
     if (!pts.length) { empty(ctx, w, h, "no lamp reading yet"); return; }
     const xr = range(pts.map((q) => q.t), 0.08), tt = timeTicks(xr[0], xr[1]);
-    const box = { x: 62, y: 8, w: w - 120, h: h - 48 };
+    const box = { x: 62, y: 22, w: w - 120, h: h - 62 };
     const opts = { xticks: tt.ticks, xfmt: tt.fmt, xlabel: tt.label };
     if (cur.length) {
-      const { X, Y } = axes(ctx, box, xr, range(cur.map((q) => q.i), 0.2), { ...opts, ylabel: "current [A]" });
+      // currents in the lower part of the box, voltages in the upper: a reading of each at one time never overlaps
+      const [lo, hi] = range(cur.map((q) => q.i), 0.2);
+      const { X, Y } = axes(ctx, box, xr, [lo, hi + (hi - lo)], { ...opts, ylabel: "current [A]" });
+      runStarts(ctx, box, X, pts);
       for (const q of cur) dot(ctx, X(q.t), Y(q.i), 3.5, BLUE);
     }
+    legend(ctx, box.x, 2, [[BLUE, "current"], [ORANGE, "voltage"]], false);
     if (volt.length) {
-      const { X, Y } = axes(ctx, box, xr, range(volt.map((q) => q.v), 0.2),
+      const [lo, hi] = range(volt.map((q) => q.v), 0.2);
+      const { X, Y } = axes(ctx, box, xr, [lo - (hi - lo), hi],
                             { ...opts, right: true, xticks: [], ylabel: "voltage [V]" });
       ctx.fillStyle = ORANGE;
       for (const q of volt) { ctx.fillRect(X(q.t) - 3, Y(q.v) - 3, 6, 6); }
@@ -367,5 +456,7 @@
     fill("flags", Object.entries(s.flags || {}).map(([f, n]) => [f, String(n)]));
   }
 
-  poll();
+  const initial = document.getElementById("initial-state");      // the server's first paint, drawn at once
+  if (initial) { try { take(JSON.parse(initial.textContent)); } catch (e) { /* the poll below draws it */ } }
+  setTimeout(poll, initial ? POLL_MS : 0);
 })();
