@@ -99,8 +99,8 @@ class AdaptiveSampler:
               motors_deg=[list(p.motors_deg) for p in kept], unreachable=unreachable, estimated_s=estimated,
               planned_rig_time_s=self.planned_s, gain=batch.gain, score_per_s=batch.score_per_s,
               max_u_rel=batch.max_u_rel,
-              why=f"largest interpolant uncertainty per second: Δθi·Σ(u/(f+τ))² {batch.gain:.3g} over "
-                  f"{estimated:.0f} s at series {batch.series}")
+              why=f"largest expected error removed per second: Δθi·Σ(u/(f+τ))² {batch.gain:.3g} over "
+                  f"{estimated:.0f} s at series {batch.series} ({len(kept)} views, calibrated u)")
         return kept
 
     def _estimate(self, points: Sequence[PlannedPoint], position: Motors) -> float:
