@@ -63,6 +63,11 @@ class ServedCamera(LuminanceCamera):
     def capture_dark(self, exposure_s: float, window: Window | None = None) -> Frame:
         return self._expose(exposure_s, window, dark=True)
 
+    def show(self, scene: str) -> None:
+        """Put `scene` before the simulated camera (`SCENE`: the sample, the empty holder with the lamp's exit, or a
+        ChArUco board), as an operator does for `rig calibrate geometry`."""
+        self._request(f"SCENE {scene}")
+
     def close(self) -> None:
         """Say BYE (best effort) and close the connection; safe to call twice."""
         self._closed = True

@@ -175,6 +175,9 @@ class CameraServer:
                 return _ok(repr(self._expose(session, args))), False
             if verb == "READ":
                 return self._read(session), False
+            if verb == "SCENE":
+                self.camera.show(text.split(None, 1)[1] if args else "")
+                return _ok(""), False
             raise ProtocolError(f"unknown request {text!r}")
         except ValueError:
             return _err(f"malformed request {text!r}"), False
