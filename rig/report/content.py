@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,7 @@ import numpy as np
 
 from rig import __version__
 from rig.core.jsonfile import JsonFileError, parse_json
+from rig.data.campaign_runs import Run, runs_of
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, complete_lines
 from rig.physics.budget import BUDGET_COLUMNS, NOT_STATED, campaign_budget, mark_not_stated, not_stated
@@ -35,24 +36,40 @@ class Pause:
 
 @dataclass(frozen=True)
 class IlluminanceTrend:
-    """E⊥ readings (`illuminance` events) over rig time, and the lamp's drift they show."""
+    """E⊥ readings (`illuminance` events) over the campaign's rig time (rig.data.campaign_runs: it continues
+    across resumes), the run of each, and the lamp's drift they show within each run: a resume may follow a
+    night with the lamp off, so no trend is drawn across one."""
     rig_time_s: np.ndarray
     e_perp_lx: np.ndarray
     u_lx: np.ndarray
+    run: np.ndarray = field(default_factory=lambda: np.zeros(0, int))    # run index of each reading (none: one)
+
+    def runs(self) -> list[np.ndarray]:
+        """Each run's readings, as index arrays."""
+        if self.run.size != self.rig_time_s.size:
+            return [np.arange(self.rig_time_s.size)]
+        return [np.flatnonzero(self.run == r) for r in np.unique(self.run)]
 
     @property
     def change_rel(self) -> float | None:
-        """Last reading / first − 1: the drift over the whole run."""
+        """Last reading / first − 1: the drift over the whole campaign."""
         return float(self.e_perp_lx[-1] / self.e_perp_lx[0] - 1) if self.e_perp_lx.size >= 2 else None
 
     @property
     def slope_rel_per_h(self) -> float | None:
-        """Least-squares slope of E⊥ against rig time, relative to the mean, per hour (a steady lamp drift)."""
-        t = self.rig_time_s
-        if t.size < 2 or np.ptp(t) <= 0:
-            return None
-        slope_lx_per_s = np.polyfit(t, self.e_perp_lx, 1)[0]
-        return float(slope_lx_per_s * SECONDS_PER_HOUR / np.mean(self.e_perp_lx))
+        """Least-squares slope of E⊥ against rig time within the runs (one slope, each run its own level),
+        relative to the mean, per hour (a steady lamp drift)."""
+        sxy = sxx = 0.0
+        for k in self.runs():
+            t, e = self.rig_time_s[k], self.e_perp_lx[k]
+            sxy += float(np.sum((t - t.mean()) * (e - e.mean()))) if k.size else 0.0
+            sxx += float(np.sum((t - t.mean()) ** 2)) if k.size else 0.0
+        return sxy / sxx * SECONDS_PER_HOUR / float(np.mean(self.e_perp_lx)) if sxx > 0 else None
+
+    def run_slopes_rel_per_h(self) -> list[float | None]:
+        """Each run's own trend (as `slope_rel_per_h`), in run order."""
+        return [IlluminanceTrend(self.rig_time_s[k], self.e_perp_lx[k], self.u_lx[k]).slope_rel_per_h
+                for k in self.runs()]
 
 
 @dataclass(frozen=True)
@@ -66,6 +83,7 @@ class Conditions:
     faults: dict[str, int]            # every FAULT_EVENTS kind, 0 when absent
     resumes: int
     rig_time_s: float | None
+    runs: list[Run] = field(default_factory=list)      # the first run and each resume, with their warm-ups
 
 
 @dataclass(frozen=True)
@@ -199,25 +217,26 @@ def _pauses(events: list[dict]) -> list[Pause]:
     return pauses
 
 
-def _illuminance(events: list[dict]) -> IlluminanceTrend:
-    readings = [(_number(e.get("rig_time_s")), _number(e.get("illuminance_normal_lx")), _number(e.get("u_lx")))
-                for e in events if e.get("event") == "illuminance"]
-    kept = [(t, e, u if u is not None else np.nan) for t, e, u in readings if t is not None and e is not None]
-    arr = np.array(kept, float).reshape(-1, 3)
-    return IlluminanceTrend(arr[:, 0], arr[:, 1], arr[:, 2])
+def _illuminance(runs: list[Run]) -> IlluminanceTrend:
+    kept = [(t, e, u if u is not None else np.nan, run.index) for run in runs for t, e, u in run.illuminance]
+    arr = np.array(kept, float).reshape(-1, 4)
+    return IlluminanceTrend(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3].astype(int))
 
 
 def conditions(events: list[dict], manifest: Mapping) -> Conditions:
     """The run's conditions from its events and manifest."""
     warm = next((e for e in events if e.get("event") in ("warmup_stable", "warmup_not_stable")), None)
     counted = count_events(events)
+    runs = runs_of(manifest, events)
+    total = max([t for t in (_number(manifest.get("rig_time_s")), runs[-1].end_s if runs else None) if t is not None],
+                default=None)                # an old dataset's manifest has its last run's rig time only
     return Conditions(
         warmup_s=_number(warm.get("warmup_s")) if warm else None,
         warmup_stable=(warm.get("event") == "warmup_stable") if warm else None,
         warmup_change_rel=_number(warm.get("change_rel")) if warm else None,
-        illuminance=_illuminance(events), pauses=_pauses(events),
+        illuminance=_illuminance(runs), pauses=_pauses(events),
         faults={kind: counted.get(kind, 0) for kind in FAULT_EVENTS},
-        resumes=len(manifest.get("resumes") or []), rig_time_s=_number(manifest.get("rig_time_s")))
+        resumes=len(manifest.get("resumes") or []), rig_time_s=total, runs=runs)
 
 
 def counts(ds: Dataset) -> Counts:

@@ -118,8 +118,13 @@ def illuminance_figure(trend: IlluminanceTrend) -> Embedded | None:
     t_h = trend.rig_time_s / 3600.0
     fig = Figure(figsize=(7.5, 2.6))
     ax = fig.add_subplot()
-    ax.errorbar(t_h, 100 * (trend.e_perp_lx / mean - 1), yerr=100 * trend.u_lx / mean, fmt="o-", ms=4,
-                color=MEASURED, ecolor="0.5", capsize=2, lw=1)
+    runs = trend.runs()                 # each run its own line: none is drawn across a resume
+    for r, k in enumerate(runs):
+        ax.errorbar(t_h[k], 100 * (trend.e_perp_lx[k] / mean - 1), yerr=100 * trend.u_lx[k] / mean, fmt="o-", ms=4,
+                    color=MEASURED if r == 0 else f"C{r + 1}", ecolor="0.5", capsize=2, lw=1,
+                    label=f"run {r + 1}" if len(runs) > 1 else None)
+    if len(runs) > 1:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.axhline(0, color="0.4", lw=0.8)
     ax.set(xlabel="rig time [h]", ylabel="E⊥ / mean − 1 [%]", title=f"E⊥ readings (mean {mean:.5g} lx, ± u)")
     ax.grid(True, alpha=0.3)

@@ -156,11 +156,19 @@ def _conditions_section(c: ReportContent) -> str:
     trend = k.illuminance
     stable = "–" if k.warmup_stable is None else ('<span class="ok">stable</span>' if k.warmup_stable
                                                    else '<span class="warn">not stable at the maximum</span>')
+    warmups = [(run.index, w) for run in k.runs for w in run.warmups]
     rows = [("Lamp warm-up", f"{sig(None if k.warmup_s is None else k.warmup_s / 60, 3)} min, {stable} "
-                             f"(last change {percent(k.warmup_change_rel)})"),
-            ("E⊥ readings", f"{trend.e_perp_lx.size}"),
+                             f"(last change {percent(k.warmup_change_rel)})")] if len(warmups) < 2 else [
+            ("Lamp warm-ups", "; ".join(
+                f"run {r + 1} at {sig(w.end_s / 3600, 3)} h: {sig(w.warmup_s / 60, 3)} min, "
+                + ('<span class="ok">stable</span>' if w.stable else '<span class="warn">not stable</span>')
+                + f" (last change {percent(w.change_rel)})" for r, w in warmups))]
+    slopes = trend.run_slopes_rel_per_h()
+    rows += [("E⊥ readings", f"{trend.e_perp_lx.size}"),
             ("E⊥ change, first to last reading", percent(trend.change_rel)),
-            ("E⊥ trend (least squares)", f"{percent(trend.slope_rel_per_h)} per hour"),
+            ("E⊥ trend (least squares within each run)", f"{percent(trend.slope_rel_per_h)} per hour" + (
+                " (" + ", ".join(f"run {r + 1}: {percent(x)}" for r, x in enumerate(slopes)) + ")"
+                if len(slopes) > 1 else "")),
             ("Pauses by suspenders", str(len(k.pauses))), ("Resumed runs", str(k.resumes))]
     body = key_values(rows) + figure(illuminance_figure(trend), "E⊥ at the sample, relative to its mean, over the run")
     if k.pauses:
