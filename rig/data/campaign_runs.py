@@ -184,15 +184,18 @@ class RunRecorder:
                  expected: WarmupEstimate | None = None):
         """`writer`: the dataset's (rig.data.dataset_writer.DatasetWriter); `done_rows`: the rows already in it
         (a resume); `expected`: the warm-up the run expects (default: rig.planning.estimate's for `lamp` on
-        `rig`), recorded for the monitor and the ETA."""
+        `rig`, from the earlier runs' warm-ups in this dataset where there are some), recorded for the monitor
+        and the ETA."""
         self.writer = writer
-        self.expected = expected or warmup_estimate(lamp, rig)
         manifest = writer.manifest
         resumed = bool(manifest.get("resumes")) or bool(done_rows)
         events = read_events(writer.dir) if resumed else []
         self.offset_s = reached_s(manifest, events, done_rows) if resumed else 0.0
         runs = manifest["runs"] if continuous(manifest) else _legacy_runs(manifest, events)
         self.runs = closed_runs(runs, self.offset_s)
+        past = [w["warmup_s"] for r in self.runs for w in (r.get("warmups") or [])[:1]
+                if isinstance(w, Mapping) and _number(w.get("warmup_s")) is not None]
+        self.expected = expected or warmup_estimate(lamp, rig, past, " in this dataset")
         self.runs.append({"run": len(self.runs), "started_utc": _utc(manifest), "resumed": resumed,
                           "rig_time_offset_s": self.offset_s, "rig_time_s": 0.0, "status": "running",
                           "warmups": [], "expected_warmup": self.expected.as_record()})

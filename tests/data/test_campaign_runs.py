@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -103,4 +104,15 @@ def test_a_killed_run_is_closed_at_the_rig_time_it_reached(tmp_path):
     first, second = writer.manifest["runs"]
     assert first["status"] == "abandoned" and first["rig_time_s"] == pytest.approx(330.5)
     assert recorder.offset_s == pytest.approx(330.5) == second["rig_time_offset_s"]
+    writer.close()
+
+
+def test_a_resume_expects_the_warm_up_its_dataset_had(tmp_path):
+    writer = DatasetWriter(tmp_path / "ds", {})
+    first = RunRecorder(writer, [], Lamp(), RigConfig())
+    assert "simulated lamp's model" in first.expected.source
+    first.warmed(SimpleNamespace(lamp_voltage_v=12.0, warmup_s=700.0, stable=True, change_rel=0.001), 705.0)
+    writer.update_manifest(runs=first.ended("interrupted", 900.0), resumes=[{"previous_status": "interrupted"}])
+    second = RunRecorder(writer, [], Lamp(), RigConfig())
+    assert second.expected.seconds == 720.0 and "in this dataset" in second.expected.source   # at a check: 300+7×60
     writer.close()
