@@ -23,6 +23,7 @@ from rig.config.rigfile import RigConfig, load_rig_config, simulated_rig
 from rig.core.errors import DeviceError
 from rig.core.exits import EXIT_BROKEN_PIPE, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, fail
 from rig.data.dataset_format import DatasetError
+from rig.data.output_folder import default_output
 from rig.devices import check_devices
 from rig.drivers.interfaces import RigDevices
 from rig.drivers.registry import installed_drivers
@@ -236,7 +237,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         return fail("give a campaign file, or --resume DIR")
     try:
         campaign, rig = load_campaign(args.campaign), _rig_config(args)
-        run = prepare_run(campaign, rig, Path(args.out or campaign.output.dir), campaign_file=args.campaign,
+        run = prepare_run(campaign, rig, Path(args.out) if args.out else default_output(Path(campaign.output.dir)),
+                          campaign_file=args.campaign,
                           rig_file=args.rig or "<built-in rig>")
     except (ConfigFileError, DatasetError) as exc:
         return fail(str(exc))
@@ -258,7 +260,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     p_run = sub.add_parser("run", help="measure a campaign (by default on the built-in simulated rig)")
     p_run.add_argument("campaign", nargs="?", help="campaign YAML file")
-    p_run.add_argument("--out", help="dataset folder (default: output.dir of the campaign)")
+    p_run.add_argument("--out", help="dataset folder, new or empty (default: the campaign's output.dir, or "
+                                      "output.dir-YYYYMMDD-HHMMSS when that is taken)")
     p_run.add_argument("--resume", metavar="DIR", help="continue an interrupted or failed campaign in DIR")
     p_run.add_argument("--force", action="store_true", help="with --resume: even if the campaign file changed")
     p_run.add_argument("--rig", help="rig file (default: the built-in simulated rig); with --resume: the same "

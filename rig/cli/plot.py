@@ -28,9 +28,12 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 def add_subcommand(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register `rig plot DATASET [--fit FIT.json] --out DIR`."""
-    p = subparsers.add_parser("plot", help="PNG figures: plane of incidence and 3D lobe per incidence, "
-                                           "fit residuals")
+    p = subparsers.add_parser("plot", help="PNG figures per incidence series: the plane of incidence and the 3D lobe "
+                                           "(plane_/lobe_sNN_tiXX_piYYY.png: series, θi, φi) and, with --fit, "
+                                           "fit_residuals.png")
     p.add_argument("dataset", metavar="DATASET", help="dataset folder")
-    p.add_argument("--fit", metavar="FIT.json", help="a fit written by `rig fit --json` to overlay")
+    p.add_argument("--fit", metavar="FIT.json",
+                   help="a fit written by `rig fit DATASET --model NAME --json`: its curve, surface and residuals "
+                        "are drawn in")
     p.add_argument("--out", required=True, help="new folder for the PNG files (must not exist or be empty)")
     p.set_defaults(func=cmd_plot)

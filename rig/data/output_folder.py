@@ -6,6 +6,7 @@ import os
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
+from datetime import datetime
 from pathlib import Path
 
 from rig.data.dataset_format import DatasetError
@@ -30,6 +31,23 @@ def require_new_output(path: Path, hint: str = "choose another --out, or continu
         raise DatasetError(f"output folder {path} cannot be read: {exc.strerror or exc}") from None
     if occupied:
         raise DatasetError(f"output folder {path} already exists and is not empty; {hint} (nothing was overwritten)")
+
+
+def default_output(base: Path, now: datetime | None = None) -> Path:
+    """The folder a command writes to when no --out is given: `base` (the campaign's output.dir) while it is free
+    (absent, or an empty folder), else `base-YYYYMMDD-HHMMSS` (local time), with `-2`, `-3`, … should that be taken
+    too: a second `rig run campaigns/quick.yaml` measures again instead of refusing, and overwrites nothing."""
+    try:
+        require_new_output(base)
+        return base
+    except DatasetError:
+        pass
+    stamped = base.with_name(f"{base.name}-{(now or datetime.now()).strftime('%Y%m%d-%H%M%S')}")
+    candidate, k = stamped, 1
+    while candidate.exists() or candidate.is_symlink():
+        k += 1
+        candidate = stamped.with_name(f"{stamped.name}-{k}")
+    return candidate
 
 
 @contextmanager
