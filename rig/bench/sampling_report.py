@@ -114,13 +114,14 @@ def format_draw(group: Sequence[Result]) -> str:
 def distribution(results: Sequence[Result], failures: Sequence[Failure] = ()) -> str:
     """Per budget over the draws: reached share, quantiles of rig time and of p95 / table's p95; the bars."""
     groups = {k: g for k, g in by_draw(results).items() if table_of(g) is not None}
+    tables = {k: t for k, g in groups.items() if (t := table_of(g)) is not None}
     fractions = sorted({r.fraction for r in results if r.fraction is not None})
     lines = [f"over {len(groups)} draws ({', '.join(sorted({g[0].family for g in groups.values()}))}); "
              f"p95 inside the table's measured domain",
              f"{'strategy':17s} {'draws':>5s} {'×table rig time (median, max)':>30s} {'reached':>8s} "
              f"{'p95/table p95: p10':>18s} {'p50':>6s} {'p90':>6s}"]
     for label in [OPTIMISED] + [f"adaptive ×{f:g}" for f in fractions]:
-        rows = [(r, table_of(g)) for g in groups.values() for r in g if r.strategy == label]
+        rows = [(r, tables[k]) for k, g in groups.items() for r in g if r.strategy == label]
         if not rows:
             continue
         ratio_t = np.array([r.rig_time_s / t.rig_time_s for r, t in rows])
@@ -129,9 +130,8 @@ def distribution(results: Sequence[Result], failures: Sequence[Failure] = ()) ->
         q = np.quantile(ratio_e, [0.1, 0.5, 0.9])
         lines.append(f"{label:17s} {len(rows):5d} {np.median(ratio_t):19.3f}, {np.max(ratio_t):8.3f} {share:8.0%} "
                      f"{q[0]:18.3f} {q[1]:6.3f} {q[2]:6.3f}")
-    target = [smallest_reaching(g) for g in groups.values()]
-    ratios = [None if r is None else r.rig_time_s / table_of(g).rig_time_s       # type: ignore[union-attr]
-              for r, g in zip(target, groups.values())]
+    target = {k: smallest_reaching(g) for k, g in groups.items()}
+    ratios = [None if r is None else r.rig_time_s / tables[k].rig_time_s for k, r in target.items()]
     by_target = sum(1 for x in ratios if x is not None and x <= TARGET_FRACTION)
     by_every = sum(1 for x in ratios if x is not None and x <= EVERY_DRAW_FRACTION)
     n = max(len(groups), 1)

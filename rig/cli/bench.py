@@ -11,7 +11,7 @@ from pathlib import Path
 import rig
 from rig.bench import sampling as sampling_bench
 from rig.bench import sampling_report as report
-from rig.bench.distributed import study_client, workers_of
+from rig.bench.distributed import Failure, study_client, workers_of
 from rig.bench.draws import FAMILIES, draws
 from rig.bench.error_vs_time import SETTINGS, format_table, machine, plot, run_settings
 from rig.config.campaign import load_campaign
@@ -54,8 +54,7 @@ def cmd_sampling(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.summarise:
-        results, failures, wall = sampling_bench.load_results(out / "results.jsonl"), [], float("nan")
-        return _print_study(results, failures, wall, out)
+        return _print_study(sampling_bench.load_results(out / "results.jsonl"), [], float("nan"), out)
     drawn = draws(args.seed, args.draws, args.first, tuple(args.families))
     recorded = (out / "results.jsonl").open("w")
 
@@ -81,7 +80,7 @@ def cmd_sampling(args: argparse.Namespace) -> int:
     return _print_study(results, failures, wall, out)
 
 
-def _print_study(results: list, failures: list, wall: float, out: Path) -> int:
+def _print_study(results: list[sampling_bench.Result], failures: list[Failure], wall: float, out: Path) -> int:
     """Per draw, the distribution, the plot; exit 1 when a task failed."""
     for group in report.by_draw(results).values():
         print("\n" + report.format_draw(group) + "\n" + report.verdict(group))
