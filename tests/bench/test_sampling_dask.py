@@ -61,6 +61,7 @@ def scheduler(tmp_path_factory) -> Iterator[str]:
         while not (file.exists() and file.stat().st_size) and time.monotonic() < deadline:
             assert procs[0].poll() is None, "dask scheduler exited"
             time.sleep(0.1)
+        assert file.exists() and file.stat().st_size, f"dask scheduler wrote no address within {START_S:g} s"
         address = json.loads(file.read_text())["address"]
         procs.append(_spawn("distributed.cli.dask_worker", address, "--nworkers", "1", "--nthreads", "1",
                             "--no-dashboard", "--host", "127.0.0.1"))
