@@ -293,6 +293,11 @@ def _calibrations(manifest: Mapping) -> list[tuple[str, str]]:
             ("Lamp distance", f"{_sig(geometry.get('lamp_distance_m'))} m"),
             ("Camera distance", f"{_sig(geometry.get('camera_distance_m'))} m"),
             ("Axis angle u", f"{_sig(geometry.get('angle_u_deg'))}°")]
+    geo_cal = _part(geometry, "calibration")     # filled from geometry.calibration_file (geometry-calibration.md)
+    zeros = geo_cal.get("zero_offsets_deg")
+    rows += ([("Geometry calibration", f"{geo_cal.get('file', '–')} of {geo_cal.get('date', '–')}"),
+              ("Axis zero offsets", " / ".join(f"{_sig(z)}°" for z in zeros) if isinstance(zeros, list) else "–")]
+             if geo_cal else [("Geometry calibration", "none (nominal axis zeros)")])
     alignment = manifest.get("alignment")
     if isinstance(alignment, Mapping):
         rows += [("Alignment: arm azimuth zero", f"{_sig(alignment.get('arm_azimuth_zero_deg'))}°"),
