@@ -14,6 +14,7 @@ from __future__ import annotations
 import datetime
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -62,11 +63,16 @@ class _Seen:
     """One view as taken: its axes (encoder readings) and what was found, or why it does not count."""
 
     label: str
-    kind: str
+    kind: Literal["board", "lamp"]
     motors_deg: Motors
     ids: np.ndarray | None = None
     points_px: np.ndarray | None = None
     rejected: str | None = None
+
+    def found(self) -> tuple[np.ndarray, np.ndarray]:
+        """The corner ids (none for a lamp view) and the points found (px) of a view that counts."""
+        assert self.points_px is not None, "only a view that counts is fitted"
+        return (np.zeros(0, int) if self.ids is None else self.ids), self.points_px
 
     @property
     def count(self) -> int:
@@ -109,8 +115,8 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
         raise GeometryCalibrationError(f"too few poses: the board was usable in {len(used_boards)} of "
                                        f"{len(boards)} views, at least 6 are needed; see why above")
     try:
-        fit = gf.fit([gf.BoardView(s.label, s.motors_deg, s.ids, s.points_px) for s in used_boards],  # type: ignore[arg-type]
-                     [gf.LampView(s.label, s.motors_deg, s.points_px[0]) for s in used_lamps],  # type: ignore[index]
+        fit = gf.fit([gf.BoardView(s.label, s.motors_deg, *s.found()) for s in used_boards],
+                     [gf.LampView(s.label, s.motors_deg, s.found()[1][0]) for s in used_lamps],
                      board.sample_points(), gf.Camera(matrix, distortion),
                      camera_distance_m=config.geometry.camera_distance_m,
                      lamp_distance_m=config.geometry.lamp_distance_m)
@@ -119,7 +125,7 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
     for s in boards + lamps:
         if s.label in fit.rejected:
             s.rejected = fit.rejected[s.label]
-    views = [ViewEntry(label=s.label, kind=s.kind, motors_deg=s.motors_deg, points=s.count,  # type: ignore[arg-type]
+    views = [ViewEntry(label=s.label, kind=s.kind, motors_deg=s.motors_deg, points=s.count,
                        rms_px=fit.view_rms_px.get(s.label) if s.rejected is None else None, rejected=s.rejected)
              for s in boards + lamps]
     return GeometryCalibration(
@@ -226,7 +232,8 @@ def _lamp_views(devices: RigDevices, config: RigConfig, poses: list[Motors],
                 exposure = exposure or _meter(camera, sensor)
                 centroid, seen.rejected = lamp_centroid(camera.capture(exposure).pixels_dn, sensor)
                 seen.points_px = None if centroid is None else centroid[None, :]
-            progress(f"{seen.label}: {seen.rejected or 'lamp exit at ({:.2f}, {:.2f}) px'.format(*seen.points_px[0])}")
+            where = "" if seen.points_px is None else "lamp exit at ({:.2f}, {:.2f}) px".format(*seen.points_px[0])
+            progress(f"{seen.label}: {seen.rejected or where}")
             views.append(seen)
     finally:
         lamp.set_output(False)
@@ -237,8 +244,8 @@ def _intrinsics(board: BoardLayout, views: list[_Seen],
                 sensor: SensorInfo) -> tuple[IntrinsicsEntry, np.ndarray, np.ndarray]:
     """cv2.calibrateCamera over the board views (INTRINSIC_FLAGS)."""
     points = board.board_points()
-    objects = [points[s.ids].astype(np.float32) for s in views]                  # type: ignore[index]
-    images = [s.points_px.astype(np.float32) for s in views]                     # type: ignore[union-attr]
+    objects = [points[s.found()[0]].astype(np.float32) for s in views]
+    images = [s.found()[1].astype(np.float32) for s in views]
     size = (sensor.width_px, sensor.height_px)
     try:
         rms, matrix, distortion, _, _ = cv2.calibrateCamera(objects, images, size, None, None,
