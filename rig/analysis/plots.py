@@ -62,13 +62,18 @@ def _record_model(fit: Mapping) -> Model:
     return lambda wi, wo: model(np.broadcast_to(wi, np.shape(wo)), wo, params)
 
 
+def _phi_shown(theta_i: float, phi_i: float) -> float:
+    """φi in [0, 360), 0 at normal incidence (where the mean achieved φi is only the encoders' jitter)."""
+    return 0.0 if theta_i < NORMAL_INCIDENCE_DEG else round(phi_i, 1) % 360
+
+
 def _series_label(theta_i: float, phi_i: float) -> str:
-    return f"θi = {theta_i:.1f}°, φi = {round(phi_i, 1) % 360:.1f}°"
+    return f"θi = {theta_i:.1f}°, φi = {_phi_shown(theta_i, phi_i):.1f}°"
 
 
 def series_stem(series: int, theta_i: float, phi_i: float) -> str:
     """The figures' file-name stem of a series: its number, θi and φi (two series at one θi differ by φi)."""
-    return f"s{series:02d}_ti{theta_i:02.0f}_pi{round(phi_i) % 360:03d}"
+    return f"s{series:02d}_ti{theta_i:02.0f}_pi{round(_phi_shown(theta_i, phi_i)) % 360:03d}"
 
 
 def _plane_curve(model: Model, wi: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -240,13 +245,13 @@ def residual_figure(ds: Dataset, fit: Mapping) -> Figure:
     thetas = [t for t, _ in incidences.values()]
     norm = Normalize(min(thetas), max(max(thetas), min(thetas) + 1.0))
     cmap = colormaps["plasma_r"].resampled(256)
-    phis = sorted({round(p, 1) % 360 for _, p in incidences.values()})
+    phis = sorted({_phi_shown(t, p) for t, p in incidences.values()})
     fig = Figure(figsize=(13, 6.0))
     ax_fit, ax_res = fig.add_axes((0.08, 0.24, 0.36, 0.6)), fig.add_axes((0.525, 0.24, 0.36, 0.6))
     residual = 100 * (f - f_fit) / f_fit
     for s, (theta_i, phi_i) in incidences.items():
         rows = ds["series"] == s
-        style = {"marker": PHI_MARKERS[phis.index(round(phi_i, 1) % 360) % len(PHI_MARKERS)], "s": 22,
+        style = {"marker": PHI_MARKERS[phis.index(_phi_shown(theta_i, phi_i)) % len(PHI_MARKERS)], "s": 22,
                  "color": cmap(norm(theta_i)), "edgecolors": "k", "linewidths": 0.3, "zorder": 3}
         bars = rows & _stated(u)
         ax_fit.errorbar(f[bars], f_fit[bars], xerr=u[bars], fmt="none", ecolor="0.65", lw=0.8, zorder=2)
