@@ -5,7 +5,8 @@ default), the geometry calibration runs (`rig.calibration.geometry.measure`, the
 a camera of a third of the LMK's resolution with the same field of view, on the same goniometer: the zero errors
 are drawn before the camera, so they are the same), its file is named by the rig file, and the campaign runs on:
 
-- the same rig with zero errors 0 (the reference),
+- the same rig with zero errors 0 (the reference), with `geometry.angle_u_deg` 0.01° as typed and with the
+  calibrated rig's (a like-for-like budget: the typed 0.01° pads every steep point's u),
 - the rig with the zero errors, uncalibrated (`geometry.angle_u_deg` 0.01° as typed),
 - the rig with the zero errors and the calibration file (offsets applied, `angle_u_deg` from its covariance),
 
@@ -105,10 +106,14 @@ def main() -> None:
                 seed=seed, axis_zero_sigma_deg=SIGMA_DEG)})
             calibration, worst, u = calibrate(erring, folder)
             print(f"seed {seed}: calibration's worst |offset error| {worst:.4f}°, largest u {u:.4f}°", flush=True)
-            rigs = {"no zero errors": simulated_rig().model_copy(update={"simulation": SimulationConfig(
-                        seed=seed, axis_zero_sigma_deg=0.0)}),
+            calibrated = calibrated_rig(erring, calibration)
+            exact = simulated_rig().model_copy(update={"simulation": SimulationConfig(seed=seed,
+                                                                                      axis_zero_sigma_deg=0.0)})
+            rigs = {"no zero errors": exact,
+                    "no zero errors, u as cal.": exact.model_copy(update={"geometry": exact.geometry.model_copy(
+                        update={"angle_u_deg": calibrated.geometry.angle_u_deg})}),
                     f"σ {SIGMA_DEG}°, uncalibrated": erring,
-                    f"σ {SIGMA_DEG}°, calibrated": calibrated_rig(erring, calibration)}
+                    f"σ {SIGMA_DEG}°, calibrated": calibrated}
             for path in args.campaign:
                 campaign = load_campaign(path)
                 for label, rig in rigs.items():
