@@ -50,7 +50,7 @@ from rig.config.capture import CaptureSettings
 from rig.core.clock import Clock
 from rig.core.values import PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import LuminanceCamera
-from rig.physics.camera_calibration import CalibratedSensorInfo
+from rig.physics.camera_calibration import calibration_of
 from rig.physics.hdr import HdrMerge, merge_exposures, merged_rate, saturation_threshold_dn
 from rig.physics.roi import mean_noise, point_flags, roi_statistics
 
@@ -226,15 +226,6 @@ class Acquisition:
         image = merged_rate(self.frames, self.darks, self.exposures_s, self.sensor)
         # in float32: `image *=` a float64 calibration would go through a float64 copy of the frame
         return np.multiply(image, calibration_of(self.sensor, self.window), out=image, dtype=np.float32)
-
-
-def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:
-    """cd/m² per DN/s of the pixels of `window` (float64): the camera's coefficient over its flat field (lens
-    fall-off and PRNU), (height, width), where `rig calibrate camera` measured one; else the coefficient
-    alone, as a 0-d array (it broadcasts)."""
-    if isinstance(sensor, CalibratedSensorInfo):
-        return sensor.calibration_cd_m2_per_dn_s / sensor.flat_of(window)
-    return np.asarray(sensor.calibration_cd_m2_per_dn_s, dtype=float)
 
 
 class RawCapturer:

@@ -258,7 +258,7 @@ def luminance_coefficient(reference_cd_m2: float, reference_u_rel: float, exposu
 @dataclass(frozen=True)
 class CalibratedSensorInfo(SensorInfo):
     """SensorInfo of a camera with a calibration file: its coefficient, plus the flat field (H, W) of the
-    whole sensor that `rig.acquisition.capture` divides the merged rate by."""
+    whole sensor that the merged rate is divided by (`calibration_of`)."""
 
     flat_field: np.ndarray | None = field(default=None, compare=False, repr=False)
 
@@ -267,3 +267,12 @@ class CalibratedSensorInfo(SensorInfo):
         if self.flat_field is None:
             return np.ones(())
         return self.flat_field[Window(0, 0, self.width_px, self.height_px).inner(window)]
+
+
+def calibration_of(sensor: SensorInfo, window: Window) -> np.ndarray:
+    """cd/m² per DN/s of the pixels of `window` (float64): the camera's coefficient over its flat field (lens
+    fall-off and PRNU), (height, width), where `rig calibrate camera` measured one; else the coefficient
+    alone, as a 0-d array (it broadcasts)."""
+    if isinstance(sensor, CalibratedSensorInfo):
+        return sensor.calibration_cd_m2_per_dn_s / sensor.flat_of(window)
+    return np.asarray(sensor.calibration_cd_m2_per_dn_s, dtype=float)
