@@ -85,8 +85,10 @@ def _export_zemax(args: argparse.Namespace) -> list[Path]:
     predictor = interpolating_predictor(ds)
     result = write_zemax(predictor, out, theta_max_deg=float(np.round(np.max(ds["theta_i_deg"]), 1)),
                          comments=[f"sample {ds.sample_id()}: the measurements of {ds.path}", predictor.method])
+    theta_worst, share = result.worst_share()
     print(f"rig: {result.extrapolated_cells} of {result.cells} cells above the horizon lie beyond the measured "
-          "domain (the reconstruction's extrapolation)", file=sys.stderr)
+          f"domain (the reconstruction's extrapolation); they carry up to {share:.0%} of a row's albedo (θi "
+          f"{theta_worst:g}°): what a reader integrates there was not measured (docs/zemax.md)", file=sys.stderr)
     return [result.path]
 
 

@@ -171,9 +171,9 @@ def scatter_directions(theta_i_deg: float, azimuth_deg: np.ndarray, radial_deg: 
     return np.cos(rho) * s + np.sin(rho) * (np.cos(psi) * toward_normal + np.sin(psi) * side)
 
 
-def table(predictor: Predictor, theta_i_deg: float, grid: ZemaxGrid) -> tuple[np.ndarray, int]:
+def table(predictor: Predictor, theta_i_deg: float, grid: ZemaxGrid) -> tuple[np.ndarray, np.ndarray]:
     """The BSDF table at one incidence (0 below the horizon and where the predictor gives no finite value ≥ 0)
-    and the number of cells above the horizon the predictor flagged as extrapolated."""
+    and the mask of its cells above the horizon that the predictor flagged as extrapolated."""
     wo = scatter_directions(theta_i_deg, grid.azimuth_deg, grid.radial_deg)
     above = wo[..., 2] > 1e-9
     theta_o = np.degrees(np.arccos(np.clip(wo[..., 2], -1.0, 1.0)))
@@ -181,7 +181,7 @@ def table(predictor: Predictor, theta_i_deg: float, grid: ZemaxGrid) -> tuple[np
     with np.errstate(all="ignore"):
         p = predictor.predict(theta_i_deg, 0.0, np.where(above, theta_o, 0.0), phi_o)
         f = np.where(above, np.nan_to_num(np.asarray(p.brdf_per_sr, float), nan=0.0, posinf=0.0), 0.0)
-    return np.maximum(f, 0.0), int(np.count_nonzero(np.asarray(p.extrapolated, bool) & above))
+    return np.maximum(f, 0.0), np.asarray(p.extrapolated, bool) & above
 
 
 def table_albedo(f: np.ndarray, theta_i_deg: float, grid: ZemaxGrid) -> float:
@@ -202,28 +202,40 @@ class ZemaxExport:
     grid: ZemaxGrid
     extrapolated_cells: int         # cells above the horizon the predictor flagged as beyond the measured domain
     cells: int                      # cells above the horizon
+    #: Per incidence row, the share of the table's albedo (TIS) carried by extrapolated cells: how much of what a
+    #: reader integrates was never measured (1 for a model: no measurement is consulted).
+    extrapolated_albedo_share: np.ndarray
+
+    def worst_share(self) -> tuple[float, float]:
+        """(θi, share) of the row whose albedo rests most on extrapolated cells."""
+        k = int(np.argmax(self.extrapolated_albedo_share))
+        return float(self.grid.incidence_deg[k]), float(self.extrapolated_albedo_share[k])
 
 
 def write_zemax(predictor: Predictor, out: Path, *, theta_max_deg: float, comments: Sequence[str]) -> ZemaxExport:
     """Write the tabular BSDF of `predictor` (isotropic, light in the plane φi = 0) under a temporary name, named
     when complete (never over an existing file). Comments must be ASCII (the file is)."""
     grid = grid_for(predictor, theta_max_deg)
-    tables = [table(predictor, float(t), grid) for t in grid.incidence_deg]
-    cells = sum(int(np.count_nonzero(scatter_directions(t, grid.azimuth_deg, grid.radial_deg)[..., 2] > 1e-9))
-                for t in grid.incidence_deg.tolist())
+    rows = [(float(t), *table(predictor, float(t), grid)) for t in grid.incidence_deg]
+    tis = np.array([table_albedo(f, t, grid) for t, f, _ in rows])
+    beyond = np.array([table_albedo(np.where(mask, f, 0.0), t, grid) for t, f, mask in rows])
+    share = np.divide(beyond, tis, out=np.zeros_like(tis), where=tis > 0)
     header = [f"# exported by rig {__version__}; format: {SPEC}",
               *(f"# {' '.join(c.split())}" for c in comments),
-              f"# grid: incidence step {np.diff(grid.incidence_deg).min(initial=0):g} deg, from the lobes' widths "
+              f"# grid: incidence step {np.diff(grid.incidence_deg).max(initial=0):g} deg, from the lobes' widths "
               f"(FWHM in the plane of incidence): retroreflective {grid.retro_width_deg:.3g} deg, specular "
               f"{grid.specular_width_deg:.3g} deg",
+              f"# share of each TIS from cells beyond the measured domain: {share.min():.0%} to {share.max():.0%}",
               "Source\tMeasured", "Symmetry\tPlaneSymmetrical", "SpectralContent\tMonochrome", "ScatterType\tBRDF",
               *_enumeration("SampleRotation", [0.0]), *_enumeration("AngleOfIncidence", grid.incidence_deg.tolist()),
               *_enumeration("ScatterAzimuth", grid.azimuth_deg.tolist()),
               *_enumeration("ScatterRadial", grid.radial_deg.tolist()), "", "Monochrome", "DataBegin"]
     with new_file(Path(out)) as tmp, tmp.open("w", encoding="ascii", errors="replace", newline="\n") as fh:
         fh.write("\n".join(header) + "\n")
-        for theta_i, (f, _) in zip(grid.incidence_deg.tolist(), tables):
-            fh.write(f"TIS\t{table_albedo(f, theta_i, grid):.6g}\n")
+        for (_, f, _), albedo in zip(rows, tis):
+            fh.write(f"TIS\t{albedo:.6g}\n")
             np.savetxt(fh, f, fmt="%.5g", delimiter="\t")
         fh.write("DataEnd\n")
-    return ZemaxExport(Path(out), grid, sum(x for _, x in tables), cells)
+    return ZemaxExport(Path(out), grid, sum(int(np.count_nonzero(mask)) for _, _, mask in rows),
+                       sum(int(np.count_nonzero(scatter_directions(t, grid.azimuth_deg, grid.radial_deg)[..., 2]
+                                                > 1e-9)) for t, _, _ in rows), share)

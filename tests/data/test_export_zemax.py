@@ -179,9 +179,12 @@ def test_zemax_refusals(e2e_run, tmp_path, capsys):
     assert "--source model takes --fit" in capsys.readouterr().err and not out.exists()
 
 
-def test_from_the_data_of_a_simulated_campaign(e2e_run, tmp_path):
+def test_from_the_data_of_a_simulated_campaign(e2e_run, tmp_path, capsys):
     """--source data: the reconstruction of the reduced end-to-end campaign (four incidences, sparse views) against
-    the simulated sample's own BRDF (retrophong, tests/campaigns/e2e-reduced.yaml): median within 12 % (10 % here)."""
+    the simulated sample's own BRDF (retrophong, tests/campaigns/e2e-reduced.yaml): median within 12 % (10 % here).
+    Its albedo is not the truth's within 0.5 % (3 to 69 %: docs/zemax.md, benchmarks/zemax_albedo.py): 40 to 78 %
+    of each row's albedo lies where the campaign never looked, and the export says so; what the file holds, a
+    reader integrates to its TIS."""
     import yaml
 
     campaign = yaml.safe_load(Path(__file__).parents[1].joinpath("campaigns", "e2e-reduced.yaml").read_text())
@@ -199,6 +202,13 @@ def test_from_the_data_of_a_simulated_campaign(e2e_run, tmp_path):
     wi = np.concatenate([np.sin(t), np.zeros_like(t), np.cos(t)], axis=-1)
     f = get_model(truth["model"])(wi, wo, truth["params"])
     assert np.median(np.abs(sample(table, theta_i, wo) / f - 1)) < 0.12
+    err = capsys.readouterr().err
+    share = int(err.split("they carry up to ")[1].split("%")[0])
+    assert 40 <= share <= 100, err
+    assert "# share of each TIS from cells beyond the measured domain" in out.read_text(encoding="ascii")[:2000]
+    for theta in (40.0, 80.0):
+        row = int(np.flatnonzero(table.incidence == theta)[0])
+        assert reader_albedo(table, theta) == pytest.approx(table.tis[row], rel=0.005)
 
 
 def test_grid_follows_the_lobes():
