@@ -18,7 +18,10 @@ On a steep glossy lobe the ROI mean is not the value at the ROI centre: its pixe
 from directions up to the footprint apart (rig.physics.footprint). A quadratic fit of the log block
 means estimates that bias; where it is resolved, the mean is corrected to the centre value, the bias's
 uncertainty becomes its own component (u_lobe), and the texture is the spread of the block means
-about the fitted lobe rather than about their mean (which would count the lobe as texture).
+about the fitted lobe rather than about their mean (which would count the lobe as texture). Where it is
+not resolved the texture is the spread about the block means' plane (a slope averages out of the mean);
+on a clear slope the lobe's curvature still biases the mean, by about the bias the fit estimates, which
+is then u_lobe (no correction applied): a kink or a curved flank within the footprint (issue 34).
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ class RoiStats:
     n: int                 # pixels
     n_blocks: int          # whole blocks used for u_mean
     lobe: LobeFit = NO_LOBE  # the fit of the block means' curvature (rig.physics.footprint)
-    u_lobe: float = 0.0    # standard uncertainty of the lobe correction (0 when none is applied)
+    u_lobe: float = 0.0    # standard uncertainty of the lobe correction, or the bias left uncorrected (below)
+    corrected: bool = False  # the mean is corrected to the ROI centre for the lobe (the fit resolves it)
 
     @property
     def u_texture(self) -> float:
@@ -58,17 +62,17 @@ class RoiStats:
     @property
     def lobe_bias_rel(self) -> float:
         """The relative bias `mean` was corrected for (ROI mean / centre value − 1); 0 when not corrected."""
-        return self.lobe.bias_rel if self.u_lobe > 0 else 0.0
+        return self.lobe.bias_rel if self.corrected else 0.0
 
     @property
     def lobe_slope_rel(self) -> float:
         """The corrected lobe's log-slope at the ROI centre per footprint; 0 when not corrected."""
-        return self.lobe.slope_rel if self.u_lobe > 0 else 0.0
+        return self.lobe.slope_rel if self.corrected else 0.0
 
     @property
     def lobe_width_rel(self) -> float:
         """The corrected lobe's half-width in units of the view footprint; 0 when not corrected (or flat)."""
-        return self.lobe.width_rel if self.u_lobe > 0 and np.isfinite(self.lobe.width_rel) else 0.0
+        return self.lobe.width_rel if self.corrected and np.isfinite(self.lobe.width_rel) else 0.0
 
 
 def mean_noise(variance: np.ndarray) -> float:
@@ -83,6 +87,26 @@ def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
     return tiles.mean(axis=(1, 3))
 
 
+#: A plane through the block means explains this many times their residual variance (per parameter, an F
+#: statistic) when the ROI lies on a lobe's flank: a pure texture gives about 1 (F > 10 by chance: p < 1e-3).
+SLOPE_F = 10.0
+
+
+def _about_plane(means: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """Block means about their least-squares plane, its degrees of freedom, and the plane's F statistic."""
+    rows, cols = means.shape
+    n = means.size
+    if rows < 2 or cols < 2 or n <= 3:
+        return means - means.mean(), n - 1, 0.0
+    y, x = np.mgrid[0:rows, 0:cols]
+    design = np.stack([np.ones(n), x.ravel() - x.mean(), y.ravel() - y.mean()], axis=1)
+    coef = np.linalg.lstsq(design, means.ravel(), rcond=None)[0]
+    dev = means - (design @ coef).reshape(rows, cols)
+    res = float(np.sum(dev ** 2))
+    explained = float(np.sum((means - means.mean()) ** 2)) - res
+    return dev, n - 3, explained / 2 / (res / (n - 3)) if res > 0 else (np.inf if explained > 0 else 0.0)
+
+
 def u_mean_of_blocks(means: np.ndarray) -> float:
     """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included.
 
@@ -91,15 +115,8 @@ def u_mean_of_blocks(means: np.ndarray) -> float:
     ROI mean averages out exactly (the ROI is symmetric about its centre, whose direction the row's angles
     are), so it is no error of the mean; counted as texture it widened u on every sloped point (issue 34).
     The plane's three parameters are taken out of the degrees of freedom."""
-    rows, cols = means.shape
+    dev, dof, _ = _about_plane(means)
     n = means.size
-    if rows >= 2 and cols >= 2 and n > 3:
-        y, x = np.mgrid[0:rows, 0:cols]
-        design = np.stack([np.ones(n), x.ravel() - x.mean(), y.ravel() - y.mean()], axis=1)
-        coef = np.linalg.lstsq(design, means.ravel(), rcond=None)[0]
-        dev, dof = means - (design @ coef).reshape(rows, cols), n - 3
-    else:
-        dev, dof = means - means.mean(), n - 1
     var = float(np.sum(dev ** 2)) / dof
     products = np.concatenate([(dev[:, :-1] * dev[:, 1:]).ravel(), (dev[:-1, :] * dev[1:, :]).ravel()])
     cov = float(np.clip(products.mean(), 0.0, var)) if products.size else 0.0
@@ -130,13 +147,17 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
     n, mean = image.size, float(image.mean())
     lobe = fit_lobe(means, block_px, image.shape) if mean > 0 else NO_LOBE
     if not lobe.resolved or lobe.trend is None:
+        # On a flank (the plane is clear) the lobe's curvature biases the mean even where the fit cannot
+        # resolve it well enough to correct: the bias it estimates is left in, and counted as its u.
+        sloped = _about_plane(means)[2] > SLOPE_F
         return RoiStats(mean=mean, u_mean=u_mean_of_blocks(means), u_mean_noise=mean_noise(variance),
-                        std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe)
+                        std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe,
+                        u_lobe=abs(lobe.bias_rel * mean) if sloped else 0.0)
     # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
     scale = 1.0 / (1.0 + lobe.bias_rel)
     return RoiStats(mean=mean * scale, u_mean=u_mean_of_blocks(means / lobe.trend) * scale,
                     u_mean_noise=mean_noise(variance) * scale, std=float(image.std(ddof=1)), n=n,
-                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale)
+                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale, corrected=True)
 
 
 def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:
