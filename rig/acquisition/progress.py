@@ -26,6 +26,10 @@ MIN_BAR_WIDTH = 5
 #: Room kept beside the bar for the counts and both ETAs ("1865/1865 100%  rig 0:54:17  ETA 0:00:20 wall,
 #: 0:54:17 rig" is 58 characters); the message gets what is left.
 TEXT_ROOM = 58
+#: Characters of a message worth dropping fields for (a warm-up's elapsed time and rest).
+MESSAGE_ROOM = 30
+#: What may end a word where a message is cut.
+WORD_ENDS = " ,;:)"
 #: Clears from the cursor to the end of the line (ANSI EL): what a shorter redraw leaves of the longer one.
 CLEAR_TO_END = "\x1b[K"
 #: Bars whose line is drawn and not yet ended (`end_progress_lines`).
@@ -99,7 +103,8 @@ class ProgressBar:
 
         The bar's width depends on the terminal's alone, so it does not jump between redraws; a narrow
         terminal shortens it (down to MIN_BAR_WIDTH, then none). Then whole fields go, the least needed
-        first: the rig-time half of the ETA, the rig time, the ETA; the message keeps the words that fit.
+        first, as far as the message then fits whole (or MESSAGE_ROOM of it): the rig-time half of the ETA,
+        the rig time (the ETA only where nothing else fits); the message keeps the words that fit.
         """
         width = BAR_WIDTH if columns is None else min(BAR_WIDTH, columns - 1 - len("[] ") - TEXT_ROOM)
         bar = f"[{'#' * round(frac * width)}{'.' * (width - round(frac * width))}] " if width >= MIN_BAR_WIDTH else ""
@@ -108,9 +113,12 @@ class ProgressBar:
         if columns is None:
             return "  ".join(f for f in (bar + counts, rig, full, p.message) if f)
         room = columns - 1 - len(bar)
-        fields = next((f for f in ((counts, rig, full), (counts, rig, short), (counts, short), (counts,))
-                       if len("  ".join(f)) <= room), ())
-        line = "  ".join(fields)
+        choices = [f for f in ((counts, rig, full), (counts, rig, short), (counts, short), (counts,))
+                   if len("  ".join(f)) <= room]
+        with_eta = choices[:-1] if len(choices) > 1 else []      # the ETA goes for no message
+        whole = [f for f in with_eta if len("  ".join(f)) + 2 + len(p.message) <= room]    # the message uncut
+        roomy = [f for f in with_eta if len("  ".join(f)) + 2 + MESSAGE_ROOM <= room]     # or enough of it
+        line = "  ".join(next(iter(whole or roomy or choices), ()))
         words = _words_within(p.message, room - len(line) - 2) if line else ""
         return (bar + "  ".join(f for f in (line, words) if f))[:max(columns - 1, 0)]
 
@@ -152,5 +160,10 @@ def _words_within(message: str, room: int) -> str:
     """`message` if it fits in `room` characters, else its first words that fit followed by "…", else ""."""
     if len(message) <= room:
         return message
-    words = message[:max(room, 0)].rsplit(" ", 1)[0] if room > 1 else ""
-    return f"{words.rstrip()}…" if words and len(words) < len(message) and " " in message[:room] else ""
+    if room < 2:
+        return ""
+    cut = message[:room - 1]                          # a column for the "…"
+    if message[room - 1] not in WORD_ENDS:            # the cut falls inside a word: leave that word out
+        cut = cut.rsplit(" ", 1)[0] if " " in cut else ""
+    cut = cut.rstrip(WORD_ENDS)
+    return f"{cut}…" if cut else ""
