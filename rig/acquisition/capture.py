@@ -233,7 +233,7 @@ class RawCapturer:
 
     It owns the run's dark frames and receives the run's `clock`: each point is timed on it, darks age on
     it, and due keep-alives run on it after every frame (rig.acquisition.tending). Without a clock (a
-    bench, a test) a point's time is its summed exposures and darks never age.
+    bench, a test) a point's time is its summed exposures, and darks cannot age (dark_max_age_s must be None).
     """
 
     def __init__(self, camera: LuminanceCamera, settings: CaptureSettings, clock: Clock | None = None):

@@ -52,7 +52,7 @@ class Capturer(Protocol):
 
 def capturer_for(camera: LuminanceCamera, settings: CaptureSettings, clock: Clock | None = None) -> Capturer:
     """The capturer of `camera` with `settings`, on the run's `clock` (None: no rig clock; points are timed by
-    their exposures and dark frames never age)."""
+    their exposures, and dark frames cannot age: dark_max_age_s must be None)."""
     if isinstance(camera, CalibratedLuminanceCamera):
         return CalibratedCapturer(camera, settings, clock)
     return RawCapturer(camera, settings, clock)
