@@ -24,6 +24,7 @@ from rig.core.values import ProgressCallback
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_writer import DatasetWriter
 from rig.drivers.interfaces import RigDevices
+from rig.planning.estimate import WarmupEstimate
 from rig.planning.points import Plan, PointSource
 
 
@@ -146,6 +147,8 @@ class Prepared:
     done_rows: Sequence[dict] = ()
     #: A resumed adaptive campaign's logged batches, for its sampler.
     logged_batches: Sequence[dict] = ()
+    #: The warm-up the run expects, for its first ETA (rig.session.warmup_estimate); None: the runner's default.
+    warmup: WarmupEstimate | None = None
 
     def run(self, open_devices: RigOpener, *, progress: ProgressCallback | None = None, handle_signals: bool = False,
             sampler: SamplerFactory | None = None) -> RunOutcome:
@@ -199,7 +202,7 @@ def _execute(prepared: Prepared, devices: AbstractContextManager[RigDevices], pr
                     raise AbortRequested(requests.abort or requests.stop)
                 writer = new_dataset(prepared)
             runner = Runner(prepared.campaign, prepared.plan, opened, writer, prepared.rig, progress=progress,
-                            done_rows=prepared.done_rows, source=source)
+                            done_rows=prepared.done_rows, source=source, warmup=prepared.warmup)
             requests.attach(runner)
             ending = RunEnding(runner.run())
     except (KeyboardInterrupt, Exception) as exc:   # KeyboardInterrupt: handle_signals=False, Python's Ctrl+C

@@ -8,6 +8,7 @@ import argparse
 import os
 import sys
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 from rig import __version__
@@ -246,6 +247,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     where = "the simulated rig" if rig.simulated else f"rig {rig.name}"
     print(f"rig {__version__}: {campaign.name} on {where} → {run.out} "
           f"({len(plan.points)} points, {len(plan.skipped)} skipped)", file=sys.stderr)
+    run = replace(run, warmup=expected_warmup(campaign, rig))        # the first ETA's warm-up, as `rig plan`'s
     try:
         outcome = run.run(open_campaign_rig, progress=None if args.quiet else ProgressBar(), handle_signals=True,
                           sampler=sampler_for)

@@ -40,6 +40,9 @@ def test_rig_time_eta_at_ten_percent_is_within_30_percent_of_the_remaining_rig_t
     assert at_tenth.rig_time_s > remaining / 5                  # the warm-up weighs: naive extrapolation fails
     assert at_tenth.eta_rig_s == pytest.approx(remaining, rel=0.3)
     assert seen[-1].eta_rig_s == pytest.approx(0.0, abs=1e-9)
+    # issue 35: the first ETA counts the warm-up to come (the model's expectation here), then its rest
+    assert seen[0].eta_rig_s > campaign.lamp.warmup_min_s + 0.5 * remaining
+    assert seen[0].message.startswith("lamp warm-up 0:00, ≈ ")
 
 
 class Terminal(io.StringIO):
