@@ -1,8 +1,9 @@
 """The lamp's warm-up: on, ramped to its current, and waited for until E⊥ is steady (campaign `lamp`).
 
 A warm-up lasts minutes with nothing moving, so it says how it goes: the progress line every REPORT_EVERY_S
-of rig time (elapsed, the expected rest, the last reading and its change), and a `warmup_check` event at each
-check for the monitor (docs/dataset.md). The expected rest comes from the run's ETA (rig.acquisition.eta,
+of rig time (elapsed, the expected rest, the last reading and its change), and for the monitor an event every
+`warmup_check_s` (docs/dataset.md): `warmup_wait` during the minimum wait (no reading is taken then), then
+`warmup_check` with each check's reading. The expected rest comes from the run's ETA (rig.acquisition.eta,
 which holds the warm-up the run expects: rig.planning.estimate).
 """
 
@@ -80,7 +81,10 @@ def warm_up(cfg: Lamp, rig: RigConfig, dev: RigDevices, wait: Callable[[float], 
     progress = _Progress(cfg, wait, rig_time, report, eta)
     event("lamp_on", current_a=lamp.measure_current_a(), voltage_v=lamp.measure_voltage_v())
     next_check = cfg.warmup_min_s + cfg.warmup_check_s
-    progress.wait(cfg.warmup_min_s, next_check)
+    while (rest := cfg.warmup_min_s - progress.elapsed()) > 1e-9:
+        progress.wait(min(cfg.warmup_check_s, rest), next_check)
+        if cfg.warmup_min_s - progress.elapsed() > 1e-9:
+            event("warmup_wait", warmup_s=progress.elapsed(), expected_left_s=progress.left_s(next_check))
     previous = dev.meter.read().illuminance_lx
     while True:
         progress.wait(cfg.warmup_check_s, next_check)

@@ -150,10 +150,14 @@ class WarmupState:
     def __init__(self) -> None:
         self.on_s: float | None = None
         self.last: dict[str, Any] | None = None
+        self.rest: tuple[float, float] | None = None        # (rig time, rest expected then) of the latest event
 
     def note(self, kind: str, event: dict[str, Any], rig_s: float | None, changes: list[dict[str, Any]]) -> None:
+        left = finite_float(event.get("expected_left_s"))
+        if kind in ("warmup_wait", "warmup_check") and rig_s is not None and left is not None:
+            self.rest = (rig_s, left)
         if kind == "lamp_on":
-            self.on_s, self.last = rig_s, None
+            self.on_s, self.last, self.rest = rig_s, None, None
         elif kind == "warmup_check":
             self.last = {"t": rig_s, "lx": finite_float(event.get("illuminance_lx")),
                          "change": finite_float(event.get("change_rel")),
@@ -168,9 +172,8 @@ class WarmupState:
             isinstance(runs[-1], dict) else {}
         seconds = finite_float(expected.get("seconds"))
         elapsed = rig_time_s - self.on_s if rig_time_s is not None and self.on_s is not None else None
-        left = self.last["left_s"] if self.last else (
-            max(seconds - elapsed, 0.0) if seconds is not None and elapsed is not None else None)
-        if self.last and left is not None and self.last["t"] is not None and rig_time_s is not None:
-            left = max(left - (rig_time_s - self.last["t"]), 0.0)
+        left = max(seconds - elapsed, 0.0) if seconds is not None and elapsed is not None else None
+        if self.rest is not None and rig_time_s is not None:
+            left = max(self.rest[1] - (rig_time_s - self.rest[0]), 0.0)
         return {"expected_s": seconds, "source": text_of(expected.get("source")), "elapsed_s": elapsed,
                 "left_s": left, "last": self.last}

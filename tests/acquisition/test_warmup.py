@@ -38,8 +38,9 @@ def test_the_warm_up_ends_at_the_first_steady_check_and_says_each_check():
     warmed = bench.run(Lamp(warmup_min_s=60, warmup_check_s=30, warmup_stable_rel=0.002), eta)
     assert warmed.stable and warmed.warmup_s == pytest.approx(150.0) and warmed.lamp_voltage_v == 12.0
     kinds = [k for k, _ in bench.events]
-    assert kinds == ["lamp_on", "warmup_check", "warmup_check", "warmup_stable"]
-    check = bench.events[1][1]
+    assert kinds == ["lamp_on", "warmup_wait", "warmup_check", "warmup_check", "warmup_stable"]    # min 60, check 30
+    assert bench.events[1][1] == {"warmup_s": 30.0, "expected_left_s": 170.0}
+    check = bench.events[2][1]
     assert check["change_rel"] == pytest.approx(10 / 1010) and check["warmup_s"] == pytest.approx(90.0)
     assert check["expected_left_s"] == pytest.approx(110.0)          # to the expected 200 s
     assert eta.warmup_left_s == 0.0 and eta.stage == "between"

@@ -50,6 +50,9 @@ def test_the_warm_up_shows_its_readings_the_rest_and_an_eta_that_includes_it(tmp
     assert s["phase"] == "warm-up" and s["warmup"]["expected_s"] == 400.0 and s["warmup"]["source"] == "a test's"
     plan_s = s["eta"]["rig_s"] - 400.0
     assert plan_s > 60                                            # the quick campaign's moves, after the warm-up
+    f.event("warmup_wait", 65.0, warmup_s=60.0, expected_left_s=340.0)     # no reading in the minimum wait
+    s = f.look()
+    assert s["warmup"]["elapsed_s"] == 60.0 and s["warmup"]["left_s"] == 340.0 and s["warmup"]["last"] is None
     f.event("warmup_check", 365.0, illuminance_lx=4987.0, change_rel=0.004, stable_rel=0.002, warmup_s=360.0,
             expected_left_s=60.0)
     s = f.look()
