@@ -128,10 +128,12 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
     views = [ViewEntry(label=s.label, kind=s.kind, motors_deg=s.motors_deg, points=s.count,
                        rms_px=fit.view_rms_px.get(s.label) if s.rejected is None else None, rejected=s.rejected)
              for s in boards + lamps]
+    (px, upx), (py, upy) = gf.pointing_deg(fit.values, fit.covariance, sensor.width_px, sensor.height_px)
     return GeometryCalibration(
         rig=config.name, date=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         method=METHOD, board=BoardEntry(**vars(board)), intrinsics=intrinsics,
         parameters={name: Estimate(value=v, u=u) for name, (v, u) in fit.named().items()},
+        pointing_x_deg=Estimate(value=px, u=upx), pointing_y_deg=Estimate(value=py, u=upy),
         covariance=covariance_list(fit.covariance),
         fit=FitEntry(corner_sigma_px=fit.corner_sigma_px, lamp_sigma_px=fit.lamp_sigma_px, views=views))
 

@@ -45,6 +45,8 @@ def summary(cal: GeometryCalibration) -> str:
     for name, e in cal.parameters.items():
         unit = "m" if name.endswith("_m") else "°"
         lines.append(f"  {name.removesuffix('_deg').removesuffix('_m'):<22} {e.value:+.5f} ± {e.u:.5f} {unit}")
+    lines += [f"  pointing {axis} (past the centre) {e.value:+.5f} ± {e.u:.5f} °"
+              for axis, e in (("x", cal.pointing_x_deg), ("y", cal.pointing_y_deg))]
     for v in cal.fit.views:
         motors = " ".join(f"{m:7.2f}" for m in v.motors_deg)
         state = f"rejected: {v.rejected}" if v.rejected else f"RMS {v.rms_px:.3f} px"

@@ -85,6 +85,10 @@ class GeometryCalibration(StrictModel):
     board: BoardEntry
     intrinsics: IntrinsicsEntry
     parameters: dict[str, Estimate]
+    #: How far the camera looks past the goniometer's centre along the image's columns (x) and rows (y), from the
+    #: principal point (rig.physics.goniometer_fit.pointing_deg).
+    pointing_x_deg: Estimate
+    pointing_y_deg: Estimate
     #: Covariance of `parameters`, in their order and units.
     covariance: list[list[Finite]]
     fit: FitEntry

@@ -307,6 +307,21 @@ def _view_rms(problem: _Problem, values: np.ndarray) -> dict[str, float]:
     return rms
 
 
+def pointing_deg(values: np.ndarray, covariance: np.ndarray, width_px: int,
+                 height_px: int) -> tuple[tuple[float, float], tuple[float, float]]:
+    """How far the camera looks past the goniometer's centre, along the image's columns and rows (deg), each with
+    its standard uncertainty: the principal point against the sensor's centre, (c − size/2 + ½) / f (OpenCV's
+    pixel centres are integers), through the covariance of (f, c)."""
+    out = []
+    for f_index, c_index, size in ((11, 13, width_px), (12, 14, height_px)):
+        f, c = values[f_index], values[c_index]
+        offset = c - (size - 1) / 2
+        gradient = np.array([-offset / (f * f + offset * offset), f / (f * f + offset * offset)])   # d atan(o/f)
+        block = covariance[np.ix_([f_index, c_index], [f_index, c_index])]
+        out.append((float(np.degrees(np.arctan2(offset, f))), float(np.degrees(np.sqrt(gradient @ block @ gradient)))))
+    return out[0], out[1]
+
+
 def calibration_poses(board_views: int = 18, lamp_views: int = 5) -> tuple[list[tuple[float, float, float, float]],
                                                                            list[tuple[float, float, float, float]]]:
     """The axes (stage_vertical, stage_normal, arm_azimuth, arm_polar; deg) of the board views and the lamp views.

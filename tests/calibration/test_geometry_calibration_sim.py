@@ -46,6 +46,10 @@ def test_calibrate_geometry_recovers_every_axis_zero_within_001_deg_and_its_u_co
     for name, value in (("tilt_x_deg", tilt[0]), ("tilt_y_deg", tilt[1]), ("roll_deg", mount[2])):
         estimate = cal.parameters[name]
         assert abs(estimate.value - value) <= 3 * estimate.u, name
+    # the camera's pointing: turned about the sensor's y axis it looks past the centre along the image's columns;
+    # the principal point stands for a turn on the mount to second order (its u does not hold that)
+    for estimate, value in ((cal.pointing_x_deg, mount[1]), (cal.pointing_y_deg, mount[0])):
+        assert abs(estimate.value - value) < 0.002, (estimate, value)
     assert not [v for v in cal.fit.views if v.rejected]
 
     # the rig file names it: the offsets reach the rig, and angle_u_deg comes from their uncertainty
