@@ -3,11 +3,9 @@
 It owns the sequence (warm-up, E⊥ on a schedule, then per point: move, capture, reading, row, append) and the
 exits: whatever happens, the lamp is switched off, the axes are stopped and the manifest says how the run ended
 (rig.acquisition.outcome). It does I/O and bookkeeping; the physics it calls (kinematics, HDR merge, BRDF,
-uncertainty, rows) is pure. An adaptive campaign's points arrive in batches from a `PointSource`.
-
-Drift correction needs the E⊥ reading *after* a point, so with `illuminance.correction: interpolate` a measured
-point is first written ahead to events.jsonl (`point_pending`; nothing is lost if the process dies)
-and appended to brdf.csv once the next reading brackets it (rig.acquisition.ledger).
+uncertainty, rows) is pure. An adaptive campaign's points arrive in batches from a `PointSource`. A measured point
+waits in the ledger (rig.acquisition.ledger) for the E⊥ reading after it, written ahead; the ledger also holds the
+checkpoints a tripped suspender rewinds to. The engine writes its phase to phase.json (rig.acquisition.phase).
 
 Interruption: suspenders (rig.acquisition.suspenders) pause the run, and every tripped one is handled by
 `Runner._suspend`. The operator's stop and abort requests (rig.acquisition.stopping) are honoured between points
@@ -33,14 +31,16 @@ from rig.acquisition.ledger import Ledger
 from rig.acquisition.meter_readings import illuminance_of
 from rig.acquisition.moves import Motors, Mover
 from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_of
+from rig.acquisition.phase import PhaseFile
 from rig.acquisition.rows import Measurement, RowConstants
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
 from rig.acquisition.summary import run_summary
-from rig.acquisition.suspenders import UNVOUCHED, Suspender, device_silent, install
+from rig.acquisition.suspenders import UNVOUCHED, Suspender, device_silent, hold, install
 from rig.acquisition.tending import batch_while_tending, tended
 from rig.acquisition.warmup import warm_up
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig, camera_optics
+from rig.core import events
 from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading, PointCapture, Progress, ProgressCallback
 from rig.data.campaign_runs import RunRecorder
@@ -87,12 +87,14 @@ class Runner:
         self.reading: IlluminanceEstimate | None = None
         self._points_since_reading = 0
         self.lamp_ref_v: float | None = None       # lamp voltage when warm: the lamp suspender's reference
-        self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait)
         self.eta = Eta(self.rig_time, self.runs.expected.seconds)
         g = rig.geometry
         constants = RowConstants(g.angle_u_deg, lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg),
                                  campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel)
         self.ledger = Ledger(writer, done_rows, constants, ill.correction == "interpolate", self.eta, self.rig_time)
+        self.phase = PhaseFile(writer.dir, self.rig_time)
+        self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait,
+                                  mark=self.ledger.mark)
         given.route_events(self._device_event)         # from here on a driver's retry is reported
         self.attenuation = attenuation_for(devices, rig.attenuator, self._device_event)
         self.mover = Mover(devices, rig)
@@ -128,11 +130,13 @@ class Runner:
         self.requests.request_abort(reason)
 
     def _stop_honoured(self, reason: str) -> None:
-        self.writer.event("stop_requested", reason=reason, rig_time_s=self.rig_time())
+        self.phase.set(events.STOPPING, reason)
+        self.writer.event(events.STOP_REQUESTED, reason=reason, rig_time_s=self.rig_time())
         self._report(f"stopping: {reason}")
 
     # -- the lamp and E⊥ ---------------------------------------------------------------------
     def _warm_up(self) -> None:
+        self.phase.set(events.WARMING_UP, "lamp switched on")
         self.lamp_ref_v = self.runs.warmed(warm_up(self.campaign.lamp, self.rig, self.dev, self._wait, self.rig_time,
                                                    self._event, self._report, self.eta), self.rig_time())
 
@@ -142,7 +146,7 @@ class Runner:
         def take() -> list[IlluminanceReading]:
             return [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
         est, fields = illuminance_of(self._answering(take) if pause else take(), self.rig_time(), self.rig.meter)
-        self.writer.event("illuminance", **fields)
+        self.writer.event(events.ILLUMINANCE, **fields)
         return est
 
     def _new_reading(self) -> list[PlannedPoint]:
@@ -181,36 +185,22 @@ class Runner:
         return retake
 
     def _rewind(self, suspender: Suspender) -> list[PlannedPoint]:
-        """Discard the points waiting for E⊥ that `suspender` says (they are measured again); returns them."""
-        n = self.suspenders.to_discard(suspender, len(self.ledger.pending))
-        return self.ledger.discard_last(n, suspender.discard_reason or UNVOUCHED)
+        """Discard the points waiting for E⊥ since the checkpoint `suspender` names (they are measured again)."""
+        return self.ledger.rewind(suspender.rewind_to, suspender.discard_reason or UNVOUCHED)
 
     def _pause(self, suspender: Suspender, reason: str) -> None:
-        """Pause until `suspender.check()` clears (checked every check_interval_s), or stop after max_wait_s.
-
-        `max_wait_s` bounds the rig time of the whole pause, the checks' own time included. Points waiting for E⊥
-        keep the last good reading; nothing is interpolated across a pause."""
-        sus, device = self.campaign.suspenders, suspender.name
+        """Pause until `suspender.check()` clears, or stop after max_wait_s (rig.acquisition.suspenders.hold);
+        then re-warm if it says so. Points waiting for E⊥ keep the last good reading; nothing is interpolated
+        across a pause."""
         self.eta.measuring(False)
+        self.phase.set(events.PAUSED, f"{suspender.name}: {reason}")
         self.ledger.write_pending(self.reading, None)
-        self.writer.event("suspended", device=device, reason=reason, rig_time_s=self.rig_time())
-        self._report(f"PAUSED ({device}): {reason}")
-        start = self.rig_time()
-        while (still := suspender.check()) is not None:
-            waited = self.rig_time() - start
-            if waited >= sus.max_wait_s:
-                self.writer.event("suspend_timeout", device=device, reason=still, waited_s=waited,
-                                  rig_time_s=self.rig_time())
-                raise DeviceError(device, f"paused {waited:.0f} s and still: {still}")
-            self._wait(min(sus.check_interval_s, sus.max_wait_s - waited))
-            self._report(f"PAUSED ({device}) {self.rig_time() - start:.0f} s: {still}")
-        waited = self.rig_time() - start
-        self.writer.event("resumed", device=device, waited_s=waited, rig_time_s=self.rig_time())
-        self._report(f"resumed after {waited:.0f} s ({device})")
+        hold(suspender, reason, self.campaign.suspenders, self.writer.event, self.rig_time, self._wait, self._report)
         if suspender.rewarm:
             self._warm_up()
         self.reading = None            # the next E⊥ reading starts afresh
         self.eta.measuring(True)
+        self.phase.set(events.MEASURING)
 
     def _answering(self, action: Callable[[], T]) -> T:
         """Run a device exchange; while a device stops answering, pause for it, then try again."""
@@ -225,6 +215,7 @@ class Runner:
     def _align(self) -> None:
         """Campaign `alignment`: the arm aligned on the sample's specular peak (rig.acquisition.alignment)."""
         if (spec := self.campaign.alignment) is not None:
+            self.phase.set(events.ALIGNING)
             found = align_run(spec, self.writer.manifest, self.mover, self._capture, self._event,
                               self.writer.update_manifest, self._alignment_step)
             g = self.rig.geometry
@@ -245,6 +236,7 @@ class Runner:
         this one among them if a suspender tripped before or while it was measured."""
         if tripped := self.suspenders.tripped(self._answering):
             return self._suspend(*tripped) + [point]
+        self.ledger.started()
         try:
             m = self._measure_point(point, next_point)
         except DeviceError as exc:
@@ -254,7 +246,7 @@ class Runner:
                 return retake + [point]
             if not exc.transient:
                 raise
-            self.writer.event("retry", point_id=point.point_id, device=exc.device, error=str(exc),
+            self.writer.event(events.RETRY, point_id=point.point_id, device=exc.device, error=str(exc),
                               rig_time_s=self.rig_time())
             self.mover.resync()
             m = self._measure_point(point, next_point)
@@ -291,6 +283,7 @@ class Runner:
         queue = deque(p for p in self.plan.points if p.point_id not in self.done_ids)
         previous_series = None
         self.eta.measuring(True)
+        self.phase.set(events.MEASURING)
         while queue:
             self.requests.check_stop()
             point = queue[0]
@@ -336,7 +329,7 @@ class Runner:
                 self._rewind(tripped[0])
             est = self._read_illuminance(pause=False)
         except DeviceError as exc:
-            self.writer.event("closing_reading_failed", error=str(exc), rig_time_s=self.rig_time())
+            self.writer.event(events.CLOSING_READING_FAILED, error=str(exc), rig_time_s=self.rig_time())
             return
         jump = self.suspenders.illuminance
         if jump.jump(self.reading, est) is not None:
@@ -354,8 +347,9 @@ class Runner:
         try:
             try:
                 self.requests.check_stop()            # asked before the run began: do not even switch the lamp on
+                self.phase.set(events.STARTING)
                 ids = self.dev.identities()
-                self.writer.event("devices", identities=ids, simulated=self.dev.simulated)
+                self.writer.event(events.DEVICES, identities=ids, simulated=self.dev.simulated)
                 self.writer.update_manifest(rig={**self.writer.manifest.get("rig", {}), "identities": ids})
                 self._warm_up()
                 self._align()
@@ -375,24 +369,25 @@ class Runner:
             self.dev.clock.sleep_check = None
             problems = self.dev.safe_state()          # first and always: lamp off, axes stopped
             self._record_exit(ending, problems)
+            self.phase.set(events.CLOSING)
         return ending.status
 
     def _record_exit(self, ending: RunEnding, problems: list[str]) -> None:
         """Events and manifest of how the run ended; written after the rig is safe (the waiting points no lamp check
         vouched for are discarded: `--resume` measures them again)."""
         try:
-            self.ledger.discard_last(self.suspenders.to_discard(None, len(self.ledger.pending)), UNVOUCHED)
+            self.ledger.rewind(None, UNVOUCHED)
             if ending.status == "interrupted":
-                self.writer.event("interrupted", graceful=ending.graceful, reason=self.requests.reason,
+                self.writer.event(events.INTERRUPTED, graceful=ending.graceful, reason=self.requests.reason,
                                   rig_time_s=self.rig_time(), measured=self.measured)
             elif ending.status == "failed":
-                self.writer.event("failed", error=ending.error, rig_time_s=self.rig_time(), measured=self.measured)
+                self.writer.event(events.FAILED, error=ending.error, rig_time_s=self.rig_time(), measured=self.measured)
             if self.ledger.pending:     # no closing reading: keep the points with the last E⊥, uncorrected
-                self.writer.event("pending_without_closing_reading", points=len(self.ledger.pending),
+                self.writer.event(events.PENDING_WITHOUT_CLOSING_READING, points=len(self.ledger.pending),
                                   rig_time_s=self.rig_time())
                 self.ledger.write_pending(self.reading, None)
         finally:
-            self.writer.event("safe_state", lamp_off=not any(p.startswith("lamp") for p in problems),
+            self.writer.event(events.SAFE_STATE, lamp_off=not any(p.startswith("lamp") for p in problems),
                               problems=problems, rig_time_s=self.rig_time())
             self.writer.update_manifest(**run_summary(ending, self.plan, self.measured, self.ledger.rows,
                                                       self.footprint_deg, self.rig_time()),

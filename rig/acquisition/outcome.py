@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from rig.acquisition.stopping import AbortRequested, StopRequested
+from rig.core import events
 from rig.data.dataset_writer import DatasetWriter
 
 Status = Literal["complete", "interrupted", "failed"]
@@ -53,7 +54,7 @@ def record_unstarted(writer: DatasetWriter, ending: RunEnding) -> None:
     Nothing was switched on, so there is no rig time, no count and no safe state to record.
     """
     if ending.status == "interrupted":
-        writer.event("interrupted", graceful=ending.graceful)
+        writer.event(events.INTERRUPTED, graceful=ending.graceful)
         writer.update_manifest(status=ending.status)
     else:
         writer.event(ending.status, error=ending.message)

@@ -1,61 +1,49 @@
 """Suspenders: conditions that pause a run until they clear (Bluesky's RunEngine idea).
 
 A suspender is a small object: a `check()` that says why the run must stay paused (None
-once it may go on), the name its `suspended`/`resumed` events carry, and what must be
-measured again when it trips. The engine handles every tripped suspender the same way
-(rig.acquisition.engine, `Runner._suspend`): discard what the suspender says, pause and
+once it may go on), the name its `suspended`/`resumed` events carry, and the checkpoint a
+trip rewinds to. The engine handles every tripped suspender the same way
+(rig.acquisition.engine, `Runner._suspend`): rewind the ledger to that checkpoint, pause and
 poll its check, re-warm the lamp if it says so, and measure the discarded points again
 (with the point in flight, if one was).
 
 Installed from the campaign's `suspenders` section:
 - the lamp (current or voltage out of tolerance), polled before every point and checked at most every
-  `LampOutOfTolerance.CHECK_EVERY_S` of rig time, and always before rows become final (below); with
+  `LampOutOfTolerance.CHECK_EVERY_S` of rig time, and always before rows become final; with
   `illuminance.correction: latest` a row is final at once, so the lamp is checked before every point;
 - an E⊥ jump beyond the drift limit between two readings, checked at every reading;
 and, whenever a device stops answering, a suspender that probes it until it answers again.
 
-The lamp on a schedule, and why no spoiled row survives: a lamp check costs two queries to the supply, the largest
-share of the pipeline's round trips beyond the bare acquisition loop when made before every point. Polled on a
-schedule, a failure is seen up to CHECK_EVERY_S late, so a check vouches only for the points measured before it,
-and a trip discards every point since the last passing check (`Retake.SINCE_CHECK`: one point when the lamp is
-checked before every point, as before). Those points can still be discarded because every row becomes final only
-after a passing check: the engine checks the polled suspenders for real before each E⊥ reading (whose rows it
-closes, also the closing reading of a graceful stop), and any other discard, a pause for another suspender or the
-exit path, discards with its own points those the lamp has not vouched for yet (`Installed.to_discard`), so that
-`--resume` measures them again. Burn-out and an open circuit (no current), the supply's own trip and drift are
-lasting: the next check sees them. A flicker between two checks is missed, as it was between a check and the
-point after it; the E⊥ reading at the end of the series catches any change of light beyond the drift limit.
+What a trip takes back is a checkpoint the suspender names (`rewind_to`, a rig.acquisition.ledger.Mark): the lamp
+rewinds to its last passing check (which marks the ledger: a check costs two queries to the supply, so it is made on
+a schedule and vouches only for the points before it), an E⊥ jump to the last reading, a silent device to neither
+(the exchange it interrupted is repeated). The ledger's module docstring says why no unvouched row becomes final.
+Burn-out and an open circuit (no current), the supply's own trip and drift are lasting: the next check sees them. A
+flicker between two checks is missed, as it was between a check and the point after it; the E⊥ reading at the end
+of the series catches any change of light beyond the drift limit.
 """
 
 from __future__ import annotations
 
 import abc
-import enum
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from rig.acquisition.ledger import Mark
 from rig.config.campaign import Campaign, Lamp
 from rig.config.campaign import Suspenders as SuspendersConfig
 from rig.config.rigfile import RigConfig
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.interfaces import IlluminanceMeter, LampSupply, RigDevices
 from rig.physics.illuminance import IlluminanceEstimate
 
 #: The `reason` of points discarded, at a pause for another suspender or at the exit, because no lamp check came
-#: after them (module docstring).
+#: after them (rig.acquisition.ledger).
 UNVOUCHED = "lamp not checked since"
-
-
-class Retake(enum.Enum):
-    """Which points waiting for their closing E⊥ reading a tripped suspender discards."""
-
-    NOTHING = "nothing"                  # a device outage: the exchange it interrupted is repeated
-    LAST_POINT = "last point"            # the last point may have been spoiled
-    SINCE_CHECK = "since check"          # the lamp: every point since its last passing check
-    SINCE_READING = "since reading"      # an E⊥ jump: every point since the last reading
 
 
 class Suspender(abc.ABC):
@@ -63,7 +51,8 @@ class Suspender(abc.ABC):
 
     #: The `device` of the suspended/resumed events.
     name: str
-    retake: Retake = Retake.NOTHING
+    #: The checkpoint a trip rewinds to: the waiting points since it are measured again (None: no point of its own).
+    rewind_to: Mark | None = None
     #: The `reason` of the points_discarded event.
     discard_reason: str = ""
     #: Warm the lamp up again before going on (it was off or out of tolerance).
@@ -71,8 +60,6 @@ class Suspender(abc.ABC):
 
     def __init__(self) -> None:
         self.discards: Counter[str] = Counter()     # point id: times this suspender discarded it
-        #: Points polled for since this suspender's last passing check (Retake.SINCE_CHECK): no check came after them.
-        self.unvouched = 0
 
     @abc.abstractmethod
     def check(self) -> str | None:
@@ -81,16 +68,6 @@ class Suspender(abc.ABC):
     def poll(self) -> str | None:
         """`check()` before a point (a suspender may check on a schedule instead)."""
         return self.check()
-
-    def at_risk(self, waiting: int) -> int:
-        """How many of the last `waiting` points (those waiting for E⊥) this suspender's condition may have spoiled,
-        had it tripped now."""
-        return {Retake.NOTHING: 0, Retake.LAST_POINT: min(1, waiting), Retake.SINCE_CHECK: min(self.unvouched, waiting),
-                Retake.SINCE_READING: waiting}[self.retake]
-
-    def forget(self, n: int) -> None:
-        """The last `n` points waiting for E⊥ were discarded: fewer are left that no check vouched for."""
-        self.unvouched = max(self.unvouched - n, 0)
 
     def discarded(self, point_ids: Sequence[str]) -> None:
         """Count the points this suspender discarded; one that limits its re-takes raises here."""
@@ -105,7 +82,7 @@ class LampOutOfTolerance(Suspender):
     switches the lamp on again."""
 
     name = "lamp"
-    retake = Retake.SINCE_CHECK
+    rewind_to = Mark.LAMP_CHECKED
     discard_reason = "lamp"
     rewarm = True
     #: Lamp current below this fraction of the setpoint: the pause names a burn-out or an open circuit.
@@ -116,24 +93,23 @@ class LampOutOfTolerance(Suspender):
     CHECK_EVERY_S = 5.0
 
     def __init__(self, lamp: LampSupply, current_a: float, tolerances: SuspendersConfig,
-                 reference_v: Callable[[], float | None], clock: Clock, check_every_s: float = CHECK_EVERY_S):
+                 reference_v: Callable[[], float | None], clock: Clock, check_every_s: float = CHECK_EVERY_S,
+                 mark: Callable[[Mark], None] = lambda mark: None):
         """`tolerances`: the campaign's lamp current and voltage tolerances; `reference_v`: the lamp
         voltage after the last warm-up (None before the first); `clock`: the rig's, for the schedule;
-        `check_every_s`: 0 checks before every point (rows appended at once cannot be taken back)."""
+        `check_every_s`: 0 checks before every point (rows appended at once cannot be taken back);
+        `mark`: the run's ledger's, told where each check passed."""
         super().__init__()
         self.lamp, self.current_a, self.tolerances, self.reference_v = lamp, current_a, tolerances, reference_v
-        self.clock, self.check_every_s = clock, check_every_s
+        self.clock, self.check_every_s, self.mark = clock, check_every_s, mark
         self.passed_at_s = -math.inf     # clock time of the last passing check
         #: The last check found the output switched off by the supply with nothing holding it off (`output_loss`).
         self.restart = False
 
     def poll(self) -> str | None:
         """Check when CHECK_EVERY_S has passed since the last passing check; either way the point about to be
-        measured is not vouched for until the next check passes (a poll whose point is not kept counts too: at
-        worst a point is measured once more)."""
-        reason = self.check() if self.clock.now() - self.passed_at_s >= self.check_every_s else None
-        self.unvouched += reason is None
-        return reason
+        measured is not vouched for until the next check passes (rig.acquisition.ledger)."""
+        return self.check() if self.clock.now() - self.passed_at_s >= self.check_every_s else None
 
     def check(self) -> str | None:
         if self.restart:
@@ -143,7 +119,8 @@ class LampOutOfTolerance(Suspender):
             return None
         reason = self._out_of_tolerance()
         if reason is None:
-            self.passed_at_s, self.unvouched = self.clock.now(), 0
+            self.passed_at_s = self.clock.now()
+            self.mark(Mark.LAMP_CHECKED)
         return reason
 
     def _out_of_tolerance(self) -> str | None:
@@ -172,7 +149,7 @@ class IlluminanceJump(Suspender):
     """
 
     name = "illuminance"
-    retake = Retake.SINCE_READING
+    rewind_to = Mark.READING
     discard_reason = "illuminance jump"
     #: A point discarded for an E⊥ jump is re-taken at most this many times; one more jump
     #: fails the run (a drift limit the lamp and meter cannot meet would re-take for ever).
@@ -269,23 +246,36 @@ class Installed:
                 return suspender, reason
         return None
 
-    def to_discard(self, tripped: Suspender | None, waiting: int) -> int:
-        """How many of the last `waiting` points to discard when `tripped` trips (None: rows become final without a
-        check, at the exit): its own, and any a polled suspender has not vouched for yet (module docstring); the
-        polled suspenders count them as gone."""
-        n = max((s.at_risk(waiting) for s in (*self.polled, *([tripped] if tripped else []))), default=0)
-        for suspender in self.polled:
-            suspender.forget(n)
-        return n
+
+def hold(suspender: Suspender, reason: str, limits: SuspendersConfig, event: Callable[..., None],
+         rig_time_s: Callable[[], float], wait: Callable[[float], None], report: Callable[[str], None]) -> None:
+    """A pause: `suspender.check()` polled every `limits.check_interval_s` until it clears, with its `suspended` and
+    `resumed` events (`event`: the dataset writer's) and progress lines; a DeviceError once `limits.max_wait_s`,
+    which bounds the rig time of the whole pause (the checks' own time included), has passed."""
+    device = suspender.name
+    event(events.SUSPENDED, device=device, reason=reason, rig_time_s=rig_time_s())
+    report(f"PAUSED ({device}): {reason}")
+    start = rig_time_s()
+    while (still := suspender.check()) is not None:
+        waited = rig_time_s() - start
+        if waited >= limits.max_wait_s:
+            event(events.SUSPEND_TIMEOUT, device=device, reason=still, waited_s=waited, rig_time_s=rig_time_s())
+            raise DeviceError(device, f"paused {waited:.0f} s and still: {still}")
+        wait(min(limits.check_interval_s, limits.max_wait_s - waited))
+        report(f"PAUSED ({device}) {rig_time_s() - start:.0f} s: {still}")
+    waited = rig_time_s() - start
+    event(events.RESUMED, device=device, waited_s=waited, rig_time_s=rig_time_s())
+    report(f"resumed after {waited:.0f} s ({device})")
 
 
 def install(campaign: Campaign, rig: RigConfig, devices: RigDevices, *, lamp_reference_v: Callable[[], float | None],
-            wait: Callable[[float], None]) -> Installed:
-    """The suspenders of `campaign.suspenders` for a run on `devices`."""
+            wait: Callable[[float], None], mark: Callable[[Mark], None]) -> Installed:
+    """The suspenders of `campaign.suspenders` for a run on `devices`; `mark`: the run's ledger's (a passing lamp
+    check marks it)."""
     sus = campaign.suspenders
     # on a schedule only while points wait for their closing E⊥ reading (module docstring)
     every_s = LampOutOfTolerance.CHECK_EVERY_S if campaign.illuminance.correction == "interpolate" else 0.0
-    lamp = LampOutOfTolerance(devices.lamp, rig.lamp.current_a, sus, lamp_reference_v, devices.clock, every_s)
+    lamp = LampOutOfTolerance(devices.lamp, rig.lamp.current_a, sus, lamp_reference_v, devices.clock, every_s, mark)
     jump = IlluminanceJump(devices.meter, sus.illuminance_drift_limit_rel, campaign.lamp, rig.meter.repeatability_rel,
                            wait)
     return Installed((lamp,), jump)

@@ -47,3 +47,15 @@ WATCHDOG_OFF = "watchdog_off"
 WATCHDOG_FEED_FAILED = "watchdog_feed_failed"
 LAMP_OUTPUT_BLOCKED = "lamp_output_blocked"
 SWITCH_OFF_RAMP_FAILED = "switch_off_ramp_failed"
+
+# -- the run's phase: phase.json beside events.jsonl (docs/dataset.md), what the monitor shows -----------------
+PHASE_FILE = "phase.json"
+STARTING = "starting"                                 # connected, the devices identified
+WARMING_UP = "warm-up"                                # the lamp warming up (at the start, or after a pause)
+ALIGNING = "aligning"                                 # the campaign's alignment on the specular peak
+MEASURING = "measuring"
+PAUSED = "paused"                                     # a suspender holds the run (detail: device: reason)
+STOPPING = "stopping"                                 # a stop was asked for (detail: why)
+CLOSING = "closing"                                   # the rig made safe; the manifest says how the run ended
+#: Every phase a run writes.
+PHASES = (STARTING, WARMING_UP, ALIGNING, MEASURING, PAUSED, STOPPING, CLOSING)

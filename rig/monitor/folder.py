@@ -30,7 +30,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from rig.core import events
 from rig.monitor import files
+from rig.monitor.phase import PHASE_OF_STATUS, WrittenPhase, detail_of, phase_after
 from rig.monitor.records import (
     PlanSummary,
     RunAxis,
@@ -47,15 +49,8 @@ from rig.monitor.records import (
 from rig.physics.budget import BUDGET_COLUMNS, campaign_budget, mark_not_stated, not_stated
 from rig.planning.points import SKIP_REASONS, describe_reason
 
-#: The run's phase after an event of these kinds (docs/dataset.md, events.jsonl); other kinds leave it.
-PHASE_AFTER = {"devices": "starting", "resume": "starting", "lamp_on": "warm-up", "warmup_stable": "measuring",
-               "warmup_not_stable": "measuring", "alignment_scan": "aligning", "aligned": "measuring",
-               "suspended": "paused", "resumed": "measuring", "stop_requested": "stopping",
-               "interrupted": "interrupted", "failed": "failed", "safe_state": "closing"}
-#: The phase of a folder whose manifest says the run ended, whatever the last event was.
-PHASE_OF_STATUS = {"complete": "finished", "interrupted": "interrupted", "failed": "failed"}
 #: Events not shown in the list of recent events: one per point, the points are plotted instead.
-QUIET_EVENTS = frozenset({"point_pending"})
+QUIET_EVENTS = frozenset({events.POINT_PENDING})
 #: Messages about skipped lines kept for the page (the count of all is `bad_lines`).
 WARNINGS_KEPT = 10
 #: Most points a manifest's counts may name (a paper campaign plans a few thousand).
@@ -87,6 +82,7 @@ class FolderFollower:
         self.manifest_error: str | None = None
         self._manifest_stamp: tuple[int, int, int] | None = None
         self._skipped_stamp: tuple[int, int, int] | None = None
+        self.written_phase = WrittenPhase(self.folder)
         self.skipped: Counter[str] = Counter()
         self.plan: PlanSummary | None = None
         self.batch_points = 0                        # points of `adaptive_batch` events (docs/sampling.md)
@@ -129,6 +125,7 @@ class FolderFollower:
             raise files.Replaced(self.folder)
         self._identity = st.st_dev, st.st_ino
         self._read_manifest()
+        self.written_phase.read(self.problems)
         self._read_skipped()
         self._follow(self.events, self._event_line)
         self._follow(self.rows, self._row_line)
@@ -279,29 +276,26 @@ class FolderFollower:
                     self.rate_origin = (wall, rig_s)
 
     def _phase(self, kind: str, event: dict[str, Any], rig_s: float | None) -> None:
-        if kind == "resume":                          # a new session: its own rate
+        """What an event says of the run: a new session (a resume), the stretches of measuring the ETA counts, and
+        the phase shown for a folder without phase.json (written by an older version)."""
+        if kind == events.RESUME:                     # a new session: its own rate
             self.session_done, self.rate_origin, self.rate_latest = None, None, None
             self.active_s, self.active_since = 0.0, None
-        if kind == "aligned":
-            self.aligned = True
-        phase = PHASE_AFTER.get(kind)
-        if phase is None or (phase == "closing" and self.phase in ("interrupted", "failed")):
+        self.aligned = self.aligned or kind == events.ALIGNED
+        phase = phase_after(kind, self.phase, self._aligning)
+        if phase is None:
             return
-        if phase == "measuring" and kind.startswith("warmup") and self._aligning():
-            phase = "aligning"
-        was_measuring = self.phase == "measuring"
-        self.phase = phase
-        self.detail = {"paused": short_text(f"{event.get('device', '?')}: {event.get('reason', '')}"),
-                       "stopping": short_text(str(event.get("reason", ""))),
-                       "interrupted": short_text(str(event.get("reason", ""))),
-                       "failed": short_text(str(event.get("error", ""))),
-                       "warm-up": "lamp switched on" if kind == "lamp_on" else ""}.get(phase, "")
-        if rig_s is None:
-            return
-        if was_measuring and phase != "measuring" and self.active_since is not None:
+        was_measuring = self.phase == events.MEASURING
+        self.phase, self.detail = phase, detail_of(phase, kind, event)
+        if rig_s is not None:
+            self._measuring_stretch(was_measuring, rig_s)
+
+    def _measuring_stretch(self, was_measuring: bool, rig_s: float) -> None:
+        """Rig time measuring (warm-up and pauses left out), for the ETA."""
+        if was_measuring and self.phase != events.MEASURING and self.active_since is not None:
             self.active_s += rig_s - self.active_since
             self.active_since = None
-        elif phase == "measuring" and not was_measuring:
+        elif self.phase == events.MEASURING and not was_measuring:
             self.active_since = rig_s
             if self.session_done is None:
                 self.session_done = self.done
@@ -316,8 +310,9 @@ class FolderFollower:
         return len(self.final | self.pending)
 
     def state(self) -> tuple[str, str]:
-        """(phase, detail): the events' phase, overruled by the manifest once the run has ended, and by
-        a writer that is gone while the manifest still says `running` (killed)."""
+        """(phase, detail): the run's phase.json (the events' phase in a folder without one), overruled by the
+        manifest once the run has ended, and by a writer that is gone while the manifest still says `running`
+        (killed)."""
         if not self.folder.is_dir():
             return "waiting", "the folder does not exist yet (the run creates it)"
         if self.manifest_error:
@@ -331,7 +326,7 @@ class FolderFollower:
         if status == "running" and files.writer_alive(self.folder) is False:
             return "abandoned", ("the writing process is gone without closing the folder (killed?); "
                                  "`rig run --resume` continues it")
-        return self.phase, self.detail
+        return self.written_phase.now or (self.phase, self.detail)
 
     def _to_measure(self) -> int | None:
         counts = section(self.manifest, "counts")
@@ -395,3 +390,4 @@ class FolderFollower:
             "flags": dict(self.flags.most_common()), "budget": self.budget(), "bad_lines": self.bad_lines,
             "warnings": [*self.problems.values(), *self.warnings],
         }
+

@@ -2,9 +2,10 @@
 
 import pytest
 
+from rig.acquisition.ledger import Mark
 from rig.acquisition.outcome import ending_of
 from rig.acquisition.stopping import AbortRequested, StopRequested, StopRequests
-from rig.acquisition.suspenders import DeviceSilent, IlluminanceJump, LampOutOfTolerance, Retake, install
+from rig.acquisition.suspenders import DeviceSilent, IlluminanceJump, LampOutOfTolerance, install
 from rig.config.campaign import Lamp as WarmUp
 from rig.config.campaign import Suspenders, parse_campaign
 from rig.config.rigfile import RigConfig
@@ -62,9 +63,11 @@ class StepClock(Clock):
         self.t += seconds
 
 
-def lamp_suspender(lamp: Lamp, reference_v: float | None = 12.0, clock: Clock | None = None) -> LampOutOfTolerance:
+def lamp_suspender(lamp: Lamp, reference_v: float | None = 12.0, clock: Clock | None = None,
+                   marks: list | None = None) -> LampOutOfTolerance:
     tolerances = Suspenders(lamp_current_tolerance_rel=0.02, lamp_voltage_tolerance_rel=0.05)
-    return LampOutOfTolerance(lamp, 4.0, tolerances, lambda: reference_v, clock or StepClock())
+    return LampOutOfTolerance(lamp, 4.0, tolerances, lambda: reference_v, clock or StepClock(),
+                              mark=(marks if marks is not None else []).append)
 
 
 def test_lamp_suspender_names_a_burn_out_a_drifting_current_and_voltage():
@@ -75,7 +78,7 @@ def test_lamp_suspender_names_a_burn_out_a_drifting_current_and_voltage():
     assert lamp_suspender(Lamp(4.0, 13.0)).check() == "lamp voltage 13.000 V, 12.000 V after warm-up"
     assert lamp_suspender(Lamp(4.0, 13.0), reference_v=None).check() is None      # before the first warm-up
     s = lamp_suspender(Lamp(4.0, 12.0))
-    assert (s.retake, s.rewarm) == (Retake.SINCE_CHECK, True)
+    assert (s.rewind_to, s.rewarm) == (Mark.LAMP_CHECKED, True)
     for _ in range(10):
         s.discarded(["s0-p1"])           # no limit: a lamp fault is the lamp's, not the point's
     assert s.discards["s0-p1"] == 10
@@ -92,7 +95,7 @@ def test_illuminance_jump_trips_beyond_the_limit_and_clears_once_steady():
         "E⊥ 1030.0 lx, 1000.0 lx at the previous reading"
     assert jump.check() == "E⊥ still changing: 1000.0 → 1050.0 lx" and waited == [60.0]
     assert jump.check() is None
-    assert jump.retake is Retake.SINCE_READING
+    assert jump.rewind_to is Mark.READING
     for _ in range(jump.max_retakes):
         jump.discarded(["s0-p1", "s0-p2"])
     with pytest.raises(DeviceError, match="point s0-p1 discarded 4 times") as failed:
@@ -110,7 +113,7 @@ def test_a_silent_device_is_probed_until_it_answers():
     silent = DeviceSilent("meter", probe)
     assert silent.check() == "meter: no reply"
     assert silent.check() is None
-    assert (silent.name, silent.retake, silent.rewarm) == ("meter", Retake.NOTHING, False)
+    assert (silent.name, silent.rewind_to, silent.rewarm) == ("meter", None, False)
 
 
 def test_waits_honour_a_stop_within_a_check_interval_and_log_it_once():
@@ -142,25 +145,24 @@ def test_one_place_decides_how_a_run_ended():
     assert (ending_of(SystemExit(3)).status, ending_of(SystemExit(3)).error) == ("failed", None)
 
 
-def test_the_lamp_is_checked_on_a_schedule_and_a_trip_takes_back_every_point_since_the_last_check():
-    """Polled before every point, the lamp is queried at most every CHECK_EVERY_S of rig time; a failed check
-    puts at risk every point since the last passing one, a passing check vouches for all of them."""
-    clock, lamp = StepClock(), Lamp(4.0, 12.0)
+def test_the_lamp_is_checked_on_a_schedule_and_each_passing_check_marks_the_ledger():
+    """Polled before every point, the lamp is queried at most every CHECK_EVERY_S of rig time; each passing check
+    marks the ledger (Mark.LAMP_CHECKED), a failing one does not (what a trip takes back: test_ledger)."""
+    clock, lamp, marks = StepClock(), Lamp(4.0, 12.0), []
     queries = []
     lamp.measure_current_a = lambda: queries.append("I") or lamp.current_a
-    s = lamp_suspender(lamp, clock=clock)
+    s = lamp_suspender(lamp, clock=clock, marks=marks)
     for _ in range(3):                   # three points a second apart: one check, before the first
         assert s.poll() is None
         clock.sleep(1.0)
-    assert queries == ["I"] and s.at_risk(waiting=10) == 3 and s.at_risk(waiting=2) == 2
+    assert queries == ["I"] and marks == [Mark.LAMP_CHECKED]
     lamp.current_a = 0.0                 # burnt out during the third point
-    assert s.poll() is None and s.at_risk(10) == 4          # not due yet: the fourth point is at risk too
+    assert s.poll() is None and queries == ["I"]            # not due yet
     clock.sleep(s.CHECK_EVERY_S)
-    assert "burnt out" in s.poll() and s.at_risk(10) == 4   # due: the trip takes back all four
-    s.forget(4)
-    assert s.at_risk(10) == 0
+    assert "burnt out" in s.poll() and marks == [Mark.LAMP_CHECKED]     # due: a trip, no mark
     lamp.current_a = 4.0
-    assert s.check() is None and s.poll() is None and s.at_risk(10) == 1     # checked: only the next point at risk
+    assert s.check() is None and marks == [Mark.LAMP_CHECKED] * 2
+    assert s.poll() is None and len(queries) == 3           # checked just now: not due
 
 
 def test_rows_appended_at_once_keep_the_lamp_checked_before_every_point():
@@ -172,6 +174,7 @@ def test_rows_appended_at_once_keep_the_lamp_checked_before_every_point():
     every_s = {}
     for correction in ("interpolate", "latest"):
         campaign = parse_campaign({**base, "illuminance": {"correction": correction}})
-        installed = install(campaign, RigConfig(), Devices(), lamp_reference_v=lambda: 12.0, wait=lambda s: None)
+        installed = install(campaign, RigConfig(), Devices(), lamp_reference_v=lambda: 12.0, wait=lambda s: None,
+                            mark=lambda mark: None)
         every_s[correction] = installed.polled[0].check_every_s
     assert every_s == {"interpolate": LampOutOfTolerance.CHECK_EVERY_S, "latest": 0.0}
