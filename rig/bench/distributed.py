@@ -41,8 +41,8 @@ class Failure:
 @contextmanager
 def study_client(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
     """A dask Client: on the scheduler at `scheduler` (host:port or tcp://host:port), else on a LocalCluster of
-    `workers` single-threaded worker processes (default one per core) with no dashboard. The cluster is closed on
-    exit, whatever happened."""
+    `workers` single-threaded worker processes (default one per core), its HTTP endpoints on loopback at a free
+    port (no dashboard: bokeh is not a dependency). The cluster is closed on exit, whatever happened."""
     try:
         from distributed import Client, LocalCluster
     except ImportError as exc:      # pragma: no cover - the bench extra names it
@@ -53,7 +53,7 @@ def study_client(scheduler: str | None = None, workers: int | None = None) -> It
             yield client
         return
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                       host="127.0.0.1", silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
         yield client
 

@@ -55,6 +55,7 @@ def scheduler(tmp_path_factory) -> Iterator[str]:
     """The address of a scheduler (`dask scheduler`) with one single-threaded worker (`dask worker`)."""
     file = tmp_path_factory.mktemp("dask") / "scheduler.json"
     procs = [_spawn("distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                    "--dashboard-address", "127.0.0.1:0",
                     "--scheduler-file", str(file))]
     try:
         deadline = time.monotonic() + START_S
@@ -64,7 +65,7 @@ def scheduler(tmp_path_factory) -> Iterator[str]:
         assert file.exists() and file.stat().st_size, f"dask scheduler wrote no address within {START_S:g} s"
         address = json.loads(file.read_text())["address"]
         procs.append(_spawn("distributed.cli.dask_worker", address, "--nworkers", "1", "--nthreads", "1",
-                            "--no-dashboard", "--host", "127.0.0.1"))
+                            "--no-dashboard", "--dashboard-address", "127.0.0.1:0", "--host", "127.0.0.1"))
         with distributed.Client(address, timeout=START_S) as client:
             client.wait_for_workers(1, timeout=START_S)
         yield address
