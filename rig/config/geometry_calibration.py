@@ -1,5 +1,5 @@
-"""Geometry calibration files: what `rig calibrate geometry` found (docs/geometry-calibration.md), read back for
-the rig file's `geometry.calibration_file`.
+"""The rig file's `geometry` section (GeometryConfig) and geometry calibration files: what `rig calibrate geometry`
+found (docs/geometry-calibration.md), read back for the section's `calibration_file`.
 
 The file is human-readable YAML: the board and the camera's intrinsics it was made with, every fitted parameter
 with its standard uncertainty (k = 1) and their covariance, and the fit's report (each view's residual, the views
@@ -26,6 +26,8 @@ FORMAT: Literal["rig-geometry-calibration"] = "rig-geometry-calibration"
 Text = Annotated[str, StringConstraints(min_length=1, max_length=500), AfterValidator(printable)]
 Finite = Annotated[float, Field(ge=-1e9, le=1e9, allow_inf_nan=False)]
 Uncertainty = Annotated[float, Field(ge=0, le=1e6, allow_inf_nan=False)]
+#: Distances on the rig (m).
+Metres = Annotated[float, Field(gt=0, le=100)]
 #: The parameters that are the axes' zero offsets, in AXIS_NAMES' order.
 ZERO_PARAMETERS = tuple(f"{axis}_zero_deg" for axis in AXIS_NAMES)
 
@@ -119,6 +121,51 @@ class GeometryCalibrationSummary(StrictModel):
     date: Text
     zero_offsets_deg: tuple[Finite, Finite, Finite, Finite]
     zero_u_deg: tuple[Uncertainty, Uncertainty, Uncertainty, Uncertainty]
+
+
+class GeometryConfig(StrictModel):
+    """The rig file's `geometry` section: distances, the axes' angle uncertainty, the geometry calibration."""
+
+    lamp_distance_m: Metres = 0.92
+    camera_distance_m: Metres = 1.54
+    lamp_housing_radius_m: float = Field(0.04, ge=0, le=10)
+    spot_diameter_m: Metres = 0.075
+    #: Standard uncertainty of every axis position (zero, positioning and read-back together).
+    angle_u_deg: float = Field(0.01, ge=0, le=10)
+    #: The part of `angle_u_deg` that differs from one position to the next on the same axis (encoder
+    #: resolution and interpolation error): what is left once a campaign's `alignment` has measured the
+    #: fixed zero errors (rig.physics.budget.lobe_view_u_deg).
+    readback_u_deg: float = Field(0.002, ge=0, le=10)
+    #: What `rig calibrate geometry` wrote (relative to the rig file, docs/geometry-calibration.md): its axis zero
+    #: offsets are applied to every move and read-back, and `angle_u_deg` comes from its uncertainty.
+    calibration_file: Annotated[str, StringConstraints(min_length=1, max_length=1000),
+                                AfterValidator(printable)] | None = None
+    #: Filled from `calibration_file` when the rig file is loaded (load_rig_config); not typed in a rig file.
+    calibration: GeometryCalibrationSummary | None = None
+
+    @model_validator(mode="after")
+    def _calibration_from_its_file(self):
+        if self.calibration is not None and self.calibration_file is None:
+            raise ValueError("calibration is written by rig from calibration_file; give that key instead")
+        return self
+
+    @model_validator(mode="after")
+    def _readback_within_angle_u(self):
+        if self.readback_u_deg > self.angle_u_deg:
+            raise ValueError(f"readback_u_deg {self.readback_u_deg:g} exceeds angle_u_deg {self.angle_u_deg:g}, "
+                             "of which it is a part")
+        return self
+
+
+def calibrated_geometry(calibration_file: str, folder: Path, readback_u_deg: float) -> dict[str, object]:
+    """The geometry section's update for its `calibration_file` (relative to the rig file's `folder`): the file's
+    path, what it holds (GeometryCalibrationSummary) and `angle_u_deg` from its uncertainty, whatever the rig file
+    typed: the largest zero offset's u with the read-back's, which varies from one position to the next
+    (rig.physics.budget). GeometryCalibrationError naming the file and key of a file that cannot be used."""
+    file = str(folder / calibration_file)
+    found = summary(file)
+    return {"calibration_file": file, "calibration": found,
+            "angle_u_deg": float(np.hypot(max(found.zero_u_deg), readback_u_deg))}
 
 
 def load_geometry_calibration(path: str | Path) -> GeometryCalibration:

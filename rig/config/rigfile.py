@@ -18,13 +18,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 from pydantic import AfterValidator, Field, StringConstraints, model_validator
 
 from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
-from rig.config.geometry_calibration import GeometryCalibrationSummary, summary
+from rig.config.geometry_calibration import GeometryConfig, calibrated_geometry
 from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, AttenuatorDevice, DevicesConfig
 from rig.config.stated_u import unstated_u
 from rig.config.strict import StrictModel
@@ -40,8 +39,6 @@ AxisDeg = Annotated[float, Field(ge=-720, le=720)]
 Seconds = Annotated[float, Field(gt=0, le=60)]
 #: A relative uncertainty or repeatability.
 Rel = Annotated[float, Field(ge=0, le=1)]
-#: Distances on the rig (m).
-Metres = Annotated[float, Field(gt=0, le=100)]
 #: Axis positions, speeds and accelerations travel as int32 step counts (docs/modbus-drives.md).
 INT32_MAX = 2 ** 31 - 1
 
@@ -71,32 +68,6 @@ class AxesConfig(StrictModel):
 
     def limits(self) -> AxisLimits:
         return AxisLimits(*(getattr(self, n).limits_deg for n in AXIS_NAMES))
-
-
-class GeometryConfig(StrictModel):
-    lamp_distance_m: Metres = 0.92
-    camera_distance_m: Metres = 1.54
-    lamp_housing_radius_m: float = Field(0.04, ge=0, le=10)
-    spot_diameter_m: Metres = 0.075
-    #: Standard uncertainty of every axis position (zero, positioning and read-back together).
-    angle_u_deg: float = Field(0.01, ge=0, le=10)
-    #: The part of `angle_u_deg` that differs from one position to the next on the same axis (encoder
-    #: resolution and interpolation error): what is left once a campaign's `alignment` has measured the
-    #: fixed zero errors (rig.physics.budget.lobe_view_u_deg).
-    readback_u_deg: float = Field(0.002, ge=0, le=10)
-    #: What `rig calibrate geometry` wrote (relative to the rig file, docs/geometry-calibration.md): its axis zero
-    #: offsets are applied to every move and read-back, and `angle_u_deg` comes from its uncertainty.
-    calibration_file: Annotated[str, StringConstraints(min_length=1, max_length=1000),
-                                AfterValidator(printable)] | None = None
-    #: Filled from `calibration_file` when the rig file is loaded (load_rig_config); not typed in a rig file.
-    calibration: GeometryCalibrationSummary | None = None
-
-    @model_validator(mode="after")
-    def _readback_within_angle_u(self):
-        if self.readback_u_deg > self.angle_u_deg:
-            raise ValueError(f"readback_u_deg {self.readback_u_deg:g} exceeds angle_u_deg {self.angle_u_deg:g}, "
-                             "of which it is a part")
-        return self
 
 
 class CameraConfig(StrictModel):
@@ -391,7 +362,12 @@ def load_rig_config(path: str | Path) -> RigConfig:
             update[name] = entry.model_copy(update={"map": str(folder / entry.map)})
     if update:
         config = config.model_copy(update={"devices": config.devices.model_copy(update=update)})
-    config = _with_geometry_calibration(config, path)
+    if (geometry := config.geometry).calibration_file is not None:       # docs/geometry-calibration.md
+        try:
+            update = calibrated_geometry(geometry.calibration_file, folder, geometry.readback_u_deg)
+        except ConfigFileError as exc:
+            raise RigConfigError(f"{path}: key 'geometry.calibration_file': {exc}") from None
+        config = config.model_copy(update={"geometry": geometry.model_copy(update=update)})
     cal = config.camera.calibration_file
     if cal is None:
         return config
@@ -401,26 +377,6 @@ def load_rig_config(path: str | Path) -> RigConfig:
     except ConfigFileError as exc:
         raise RigConfigError(f"{path}: key 'camera.calibration_file': {exc}") from None
     return config.model_copy(update={"camera": camera})
-
-
-def _with_geometry_calibration(config: RigConfig, path: str | Path) -> RigConfig:
-    """The rig with `geometry.calibration` read from `geometry.calibration_file` (relative to the rig file) and
-    `geometry.angle_u_deg` from its uncertainty, whatever the file typed: the largest zero offset's u with the
-    read-back's, which varies from one position to the next (rig.physics.budget)."""
-    geometry = config.geometry
-    if geometry.calibration_file is None:
-        if geometry.calibration is not None:
-            raise RigConfigError(f"{path}: key 'geometry.calibration' is written by rig from "
-                                 "'geometry.calibration_file'; give that key instead")
-        return config
-    file = str(Path(path).parent / geometry.calibration_file)
-    try:
-        found = summary(file)
-    except ConfigFileError as exc:
-        raise RigConfigError(f"{path}: key 'geometry.calibration_file': {exc}") from None
-    angle_u = float(np.hypot(max(found.zero_u_deg), geometry.readback_u_deg))
-    return config.model_copy(update={"geometry": geometry.model_copy(update={
-        "calibration_file": file, "calibration": found, "angle_u_deg": angle_u})})
 
 
 def simulated_rig() -> RigConfig:

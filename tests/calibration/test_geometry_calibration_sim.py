@@ -104,3 +104,9 @@ def test_a_rig_file_naming_a_bad_calibration_file_is_refused_at_load(tmp_path):
     path = write_rig(tmp_path, geometry={"calibration_file": "geometry.yaml"})
     with pytest.raises(Exception, match="key 'geometry.calibration_file'"):
         load_rig_config(path)
+
+
+def test_a_typed_calibration_without_its_file_is_refused(tmp_path):
+    summary = {"file": "g.yaml", "date": "2026-11-27", "zero_offsets_deg": [0.1, 0, 0, 0], "zero_u_deg": [0, 0, 0, 0]}
+    with pytest.raises(Exception, match="calibration is written by rig from calibration_file"):
+        load_rig_config(write_rig(tmp_path, geometry={"calibration": summary}))
