@@ -255,7 +255,7 @@ class FolderFollower:
         elif kind in ("lamp_on", "warmup_stable", "warmup_not_stable"):
             self.changes.append({"k": "l", "t": rig_s, "i": finite_float(event.get("current_a")), "r": self.axis.run,
                                  "v": finite_float(event.get("voltage_v", event.get("lamp_voltage_v")))})
-        self.warmup.note(kind, event, rig_s, self.changes)
+        self.warmup.note(kind, event, rig_s, self.changes, self.axis.run)
         self._at(event.get("time_utc"), rig_s)
         self._phase(kind, event, rig_s)
         if kind not in QUIET_EVENTS:

@@ -152,7 +152,9 @@ class WarmupState:
         self.last: dict[str, Any] | None = None
         self.rest: tuple[float, float] | None = None        # (rig time, rest expected then) of the latest event
 
-    def note(self, kind: str, event: dict[str, Any], rig_s: float | None, changes: list[dict[str, Any]]) -> None:
+    def note(self, kind: str, event: dict[str, Any], rig_s: float | None, changes: list[dict[str, Any]],
+             run: int) -> None:
+        """Follow one event (of run `run`); a check's reading goes to `changes` for the page's E⊥ chart."""
         left = finite_float(event.get("expected_left_s"))
         if kind in ("warmup_wait", "warmup_check") and rig_s is not None and left is not None:
             self.rest = (rig_s, left)
@@ -163,7 +165,7 @@ class WarmupState:
                          "change": finite_float(event.get("change_rel")),
                          "stable_below": finite_float(event.get("stable_rel")),
                          "left_s": finite_float(event.get("expected_left_s"))}
-            changes.append({"k": "w", **self.last})
+            changes.append({"k": "w", **self.last, "r": run})
 
     def state(self, manifest: dict[str, Any], rig_time_s: float | None) -> dict[str, Any]:
         """What the page says of the warm-up: expected (s, source), elapsed and the rest, the last check."""

@@ -248,16 +248,20 @@
     }
   }
 
-  // Separate runs (a resume starts one): a dotted line at each later run's first reading.
-  function runStarts(ctx, box, X, pts) {
+  // Separate runs (a resume starts one): a dotted line where each later run's first reading of any kind is
+  // (the lamp switched on, a warm-up check, E⊥).
+  function runStarts(ctx, box, X) {
+    const first = new Map();
+    for (const q of st.lamp.concat(st.warm, st.ill)) {
+      if (q.t !== null && q.r && !(first.get(q.r) <= q.t)) first.set(q.r, q.t);
+    }
     ctx.save(); ctx.setLineDash([2, 3]); ctx.strokeStyle = MUTED; ctx.fillStyle = MUTED;
     ctx.textAlign = "left"; ctx.textBaseline = "top";
-    pts.forEach((q, i) => {
-      if (i && q.r !== pts[i - 1].r) {
-        ctx.beginPath(); ctx.moveTo(X(q.t), box.y); ctx.lineTo(X(q.t), box.y + box.h); ctx.stroke();
-        ctx.fillText("resumed", X(q.t) + 3, box.y + 2);
-      }
-    });
+    for (const t of first.values()) {
+      if (X(t) < box.x || X(t) > box.x + box.w) continue;
+      ctx.beginPath(); ctx.moveTo(X(t), box.y); ctx.lineTo(X(t), box.y + box.h); ctx.stroke();
+      ctx.fillText("resumed", X(t) + 3, box.y + 2);
+    }
     ctx.restore();
   }
 
@@ -371,7 +375,7 @@
     const tt = timeTicks(xr[0], xr[1]);
     const box = { x: 64, y: 22, w: w - 84, h: h - 62 };
     const { X, Y } = axes(ctx, box, xr, yr, { xticks: tt.ticks, xfmt: tt.fmt, xlabel: tt.label, ylabel: "E⊥ [lx]" });
-    runStarts(ctx, box, X, pts);
+    runStarts(ctx, box, X);
     ctx.strokeStyle = "#9ca3af";
     for (const q of pts) if (q.u) { ctx.beginPath(); ctx.moveTo(X(q.t), Y(q.lx - q.u)); ctx.lineTo(X(q.t), Y(q.lx + q.u)); ctx.stroke(); }
     for (const q of warm) { ctx.strokeStyle = MUTED; ctx.lineWidth = 1; ctx.beginPath(); ctx.arc(X(q.t), Y(q.lx), 3, 0, 2 * Math.PI); ctx.stroke(); }
@@ -410,7 +414,7 @@
       // currents in the lower part of the box, voltages in the upper: a reading of each at one time never overlaps
       const [lo, hi] = range(cur.map((q) => q.i), 0.2);
       const { X, Y } = axes(ctx, box, xr, [lo, hi + (hi - lo)], { ...opts, ylabel: "current [A]" });
-      runStarts(ctx, box, X, pts);
+      runStarts(ctx, box, X);
       for (const q of cur) dot(ctx, X(q.t), Y(q.i), 3.5, BLUE);
     }
     legend(ctx, box.x, 2, [[BLUE, "current"], [ORANGE, "voltage"]], false);
