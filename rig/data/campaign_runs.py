@@ -168,11 +168,16 @@ def _warmup_entry(w: WarmUp) -> dict[str, Any]:
 
 
 class WarmUpEnd(Protocol):
-    """How a warm-up ended (rig.acquisition.warmup.WarmedUp)."""
-    lamp_voltage_v: float
-    warmup_s: float
-    stable: bool
-    change_rel: float
+    """How a warm-up ended (rig.acquisition.warmup.WarmedUp, a frozen dataclass: read-only)."""
+
+    @property
+    def lamp_voltage_v(self) -> float: ...
+    @property
+    def warmup_s(self) -> float: ...
+    @property
+    def stable(self) -> bool: ...
+    @property
+    def change_rel(self) -> float: ...
 
 
 class RunRecorder:
