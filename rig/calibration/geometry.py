@@ -86,6 +86,9 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
     change when the views cannot give one. The lamp is switched off again before this returns or raises."""
     detector = cv2.aruco.CharucoDetector(board.cv2_board())
     camera, sensor = devices.camera, devices.camera.sensor
+    if devices.attenuator is not None and config.attenuator is not None:
+        clearest = max(config.attenuator.filters, key=lambda f: f.transmission)       # the board is dim
+        devices.attenuator.move_to(clearest.position)
     show(board.scene())
     boards: list[_Seen] = []
     exposure: float | None = None

@@ -9,7 +9,7 @@ import yaml
 from rig.calibration.geometry import GeometryCalibrationError, measure
 from rig.cli.main import main
 from rig.config.geometry_calibration import load_geometry_calibration
-from rig.config.rigfile import load_rig_config
+from rig.config.rigfile import load_rig_config, simulated_rig
 from rig.physics.charuco_board import BoardLayout
 from rig.physics.geometry import AXIS_NAMES
 from rig.physics.goniometer_fit import calibration_poses
@@ -110,3 +110,20 @@ def test_a_typed_calibration_without_its_file_is_refused(tmp_path):
     summary = {"file": "g.yaml", "date": "2026-11-27", "zero_offsets_deg": [0.1, 0, 0, 0], "zero_u_deg": [0, 0, 0, 0]}
     with pytest.raises(Exception, match="calibration is written by rig from calibration_file"):
         load_rig_config(write_rig(tmp_path, geometry={"calibration": summary}))
+
+
+def test_the_board_is_seen_through_the_clearest_filter_of_the_wheel(tmp_path):
+    """A wheel left on its densest filter (by a glossy campaign) is turned to the open position first."""
+    config = simulated_rig()
+
+    class Stop(Exception):
+        pass
+
+    def stop(scene):
+        raise Stop
+
+    with SimulatedRig(config, "lambert", {"kd": 0.5}) as sim:
+        sim.devices.attenuator.move_to(6)
+        with pytest.raises(Stop):
+            measure(sim.devices, config, BoardLayout(), board_poses=[], lamp_poses=[], show=stop)
+        assert sim.devices.attenuator.position() == 1
