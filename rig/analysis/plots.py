@@ -49,6 +49,8 @@ DPI = 110
 #: The 3D lobe is seen from this far off the plane of incidence (degrees of azimuth): seen along the plane, one axis
 #: is edge-on and its tick labels pile up.
 LOBE_VIEW_OFF_PLANE_DEG = 55.0
+#: The plane figure's text size: the report shows it at about two thirds of its width.
+PLANE_RC = {"font.size": 11}
 MEASURED, FITTED, LAMP = "#1f77b4", "#d62728", "#ff7f0e"
 RETRO_SHADE, SPECULAR_SHADE = "#fdd9b5", "#d6e6f5"
 RETRO_TEXT, SPECULAR_TEXT = "#a0522d", "#2f5f8f"
@@ -143,9 +145,8 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=10)     # below the axis title
 
 
-def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
-               tol_deg: float = PLANE_TOL_DEG) -> Path:
-    """Plane-of-incidence figure of one series (module docstring)."""
+def plane_figure(ds: Dataset, series: int, model: Model | None = None, tol_deg: float = PLANE_TOL_DEG) -> Figure:
+    """Plane-of-incidence figure of one series (module docstring); draw it within `rc_context(PLANE_RC)`."""
     theta_i, phi_i = ds.series_incidence_deg(series)
     t, n = plane_axes(theta_i, phi_i)
     rows = ds["series"] == series
@@ -156,13 +157,19 @@ def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
     signed, off, f, u = (a[keep][order] for a in (signed, off, ds["brdf_per_sr"][rows], ds["u_brdf_per_sr"][rows]))
     wi = sph_to_vec(np.radians(theta_i), np.radians(phi_i))
     curve = _plane_curve(model, wi, t) if model else None
-    with rc_context({"font.size": 11}):          # the report shows it at about two thirds of its width
-        fig = Figure(figsize=(14, 6.0))
-        fig.suptitle(f"{ds.sample_id()} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points "
-                     f"within {tol_deg:g}° of the plane of incidence", fontsize=13)
-        _draw_polar(fig.add_axes((0.045, 0.06, 0.36, 0.8), projection="polar"), signed, f, u, curve, theta_i)
-        _draw_cartesian(fig.add_axes((0.5, 0.3, 0.42, 0.58)), signed, f, u, off, tol_deg, curve, theta_i)
-        fig.savefig(out, dpi=DPI, bbox_inches="tight", pad_inches=0.2)
+    fig = Figure(figsize=(14, 6.0))
+    fig.suptitle(f"{ds.sample_id()} — {_series_label(theta_i, phi_i)}: {keep.sum()} of {rows.sum()} points "
+                 f"within {tol_deg:g}° of the plane of incidence", fontsize=13)
+    _draw_polar(fig.add_axes((0.045, 0.06, 0.36, 0.8), projection="polar"), signed, f, u, curve, theta_i)
+    _draw_cartesian(fig.add_axes((0.5, 0.3, 0.42, 0.58)), signed, f, u, off, tol_deg, curve, theta_i)
+    return fig
+
+
+def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
+               tol_deg: float = PLANE_TOL_DEG) -> Path:
+    """The plane-of-incidence figure of one series, as a PNG."""
+    with rc_context(PLANE_RC):
+        plane_figure(ds, series, model, tol_deg).savefig(out, dpi=DPI, bbox_inches="tight", pad_inches=0.2)
     return out
 
 
@@ -251,14 +258,14 @@ def residual_figure(ds: Dataset, fit: Mapping) -> Figure:
     residual = 100 * (f - f_fit) / f_fit
     for s, (theta_i, phi_i) in incidences.items():
         rows = ds["series"] == s
-        style = {"marker": PHI_MARKERS[phis.index(_phi_shown(theta_i, phi_i)) % len(PHI_MARKERS)], "s": 22,
-                 "color": cmap(norm(theta_i)), "edgecolors": "k", "linewidths": 0.3, "zorder": 3}
+        marker = PHI_MARKERS[phis.index(_phi_shown(theta_i, phi_i)) % len(PHI_MARKERS)]
         bars = rows & _stated(u)
         ax_fit.errorbar(f[bars], f_fit[bars], xerr=u[bars], fmt="none", ecolor="0.65", lw=0.8, zorder=2)
         ax_res.errorbar(ds["theta_o_deg"][bars], residual[bars], yerr=100 * u[bars] / f_fit[bars], fmt="none",
                         ecolor="0.65", lw=0.8, zorder=2)
-        ax_fit.scatter(f[rows], f_fit[rows], **style)
-        ax_res.scatter(ds["theta_o_deg"][rows], residual[rows], **style)
+        for ax, x, y in ((ax_fit, f[rows], f_fit[rows]), (ax_res, ds["theta_o_deg"][rows], residual[rows])):
+            ax.scatter(x, y, marker=marker, s=22, color=cmap(norm(theta_i)), edgecolors="k", linewidths=0.3,
+                       zorder=3)
     both = np.concatenate([f, f_fit])
     lims = (0.7 * both[both > 0].min(), 1.4 * both.max())
     ax_fit.plot(lims, lims, color="0.3", lw=1, ls="--")

@@ -18,6 +18,7 @@ from typing import cast
 import numpy as np
 from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.projections.polar import PolarAxes
 
 from rig.analysis.plots import DPI, MEASURED, plot_dataset
@@ -81,8 +82,8 @@ def polar_map_figure(ds: Dataset) -> Figure:
     rows = int(np.ceil(len(series) / POLAR_COLUMNS))
     f = ds["brdf_per_sr"]
     norm = LogNorm(f.min(), f.max()) if f.size and np.all(f > 0) else Normalize(f.min(), f.max())
-    fig = Figure(figsize=(3.4 * POLAR_COLUMNS + 1.2, 3.3 * rows + 0.6), layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.12, h_pad=0.1, wspace=0.08, hspace=0.06)
+    fig = Figure(figsize=(3.4 * POLAR_COLUMNS + 1.2, 3.3 * rows + 0.6),
+                 layout=ConstrainedLayoutEngine(w_pad=0.12, h_pad=0.1, wspace=0.08, hspace=0.06))
     axes = [cast(PolarAxes, fig.add_subplot(rows, POLAR_COLUMNS, k + 1, projection="polar"))
             for k in range(len(series))]
     dots = None

@@ -10,6 +10,7 @@ from itertools import combinations
 
 import numpy as np
 import pytest
+from matplotlib import rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.text import Text
@@ -103,6 +104,22 @@ def test_lobe_axis_titles_clear_of_tick_labels(e2e_dataset, truth_fit):
             assert not overlapping(a, b), series
         keys = d.boxes(fig.legends[0].get_texts()) + [fig.axes[1].get_tightbbox(d.renderer)]
         assert not overlapping(keys, titles), series
+
+
+def test_plane_legends_beside_the_data(e2e_dataset, truth_fit):
+    """The plane figure at every incidence: its two legends and the colour bar meet neither panel, and no text is
+    smaller than MIN_FONT_PT."""
+    for series in range(5):
+        with rc_context(plots.PLANE_RC):
+            fig = plots.plane_figure(e2e_dataset, series, plots._record_model(truth_fit))
+            d = Drawn(fig)
+        polar, cartesian = fig.axes[:2]
+        legends = [fig.legends[0], cartesian.get_legend()]
+        panels = [polar.patch.get_window_extent(d.renderer), cartesian.get_window_extent(d.renderer)]   # the half disk
+        assert not overlapping([lg.get_window_extent(d.renderer) for lg in legends], panels), series
+        assert not overlapping([fig.axes[2].get_window_extent(d.renderer)], panels[:1]), series
+        texts = [t for lg in legends for t in lg.get_texts()] + tick_labels(cartesian)
+        assert min(t.get_fontsize() for t in texts if id(t) in d.extent) >= MIN_FONT_PT
 
 
 def test_residual_keys_outside_the_data_and_series_apart(paper_like, truth_fit):
