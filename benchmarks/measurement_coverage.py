@@ -8,8 +8,9 @@ and compares every measured point with the closed-form truth.
 
 The point-to-point part is what a row's `u_brdf_point_per_sr` must cover: the error left once the errors shared
 by the points are taken out. The shared ones here are the filters' transmissions (the simulator's camera and
-meter are exact: campaigns/rigs/simulated.yaml), one per filter position, so the common relative shift of each
-position's points (their weighted mean of f/f_true − 1) is taken out before z = (f − f_true (1 + shift))/u_point.
+meter are exact: campaigns/rigs/simulated.yaml), one per filter position, and the axes' zero errors, through
+tan θi: a weighted fit of one relative shift per filter position plus tan θi times one angle takes them out
+before z = (f/f_true − 1 − fit)/(u_point/f).
 Per family: k = 2 coverage and std(z) of that part (calibrated: about 95 % and 1), the median |shift| against the
 median correlated u (a shift the correlated part should cover), and z against the whole u.
 
@@ -41,10 +42,21 @@ from rig.session.connect import open_campaign_rig  # noqa: E402
 CAMPAIGN = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"
 
 
+def shared_out(rel: np.ndarray, u_rel: np.ndarray, filter_position: np.ndarray,
+               theta_i_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """z of the relative errors once the run's shared errors are taken out, and each filter's shift: a weighted
+    least-squares fit of one shift per filter position plus tan θi times one angle (the axes' zero errors)."""
+    positions = np.unique(filter_position)
+    design = np.column_stack([filter_position == p for p in positions]
+                             + [np.tan(np.radians(np.minimum(theta_i_deg, 89.0)))]).astype(float)
+    coef = np.linalg.lstsq(design / u_rel[:, None], rel / u_rel, rcond=None)[0]
+    return (rel - design @ coef) / u_rel, coef[:-1]
+
+
 def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
     """Measure the drawn sample with the paper table on a simulated rig of its own; per point: z of the
-    point-to-point part (shared shift per filter taken out), z against the whole u, and per filter position
-    the shift with the correlated u it had."""
+    point-to-point part (the shared errors taken out: `shared_out`), z against the whole u, and per filter
+    position the shift with the median correlated u its points had."""
     base = load_campaign(CAMPAIGN)
     sample = base.sample.model_copy(update={"simulated_brdf": SimulatedBrdf(model=drawn.family, params=drawn.params)})
     campaign = base.model_copy(update={"sample": sample})
@@ -59,14 +71,9 @@ def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
     f, u = d["brdf_per_sr"], d["u_brdf_per_sr"]
     u_point, u_corr = d["u_brdf_point_per_sr"], d["u_brdf_correlated_per_sr"]
     rel, u_point_rel = f / truth - 1, u_point / f
-    z_point, shifts, u_shared = np.empty_like(f), [], []
-    for position in np.unique(d["filter_position"]):
-        at = d["filter_position"] == position
-        w = 1 / u_point_rel[at] ** 2
-        shift = float(np.sum(w * rel[at]) / np.sum(w))
-        z_point[at] = (f[at] - truth[at] * (1 + shift)) / u_point[at]
-        shifts.append(shift)
-        u_shared.append(float(np.median(u_corr[at] / f[at])))
+    z_point, shifts = shared_out(rel, u_point_rel, d["filter_position"], d["theta_i_deg"])
+    u_shared = [float(np.median(u_corr[d["filter_position"] == p] / f[d["filter_position"] == p]))
+                for p in np.unique(d["filter_position"])]
     return {"z_point": z_point, "z_total": (f - truth) / u, "rel": rel, "shift": np.array(shifts),
             "u_corr": np.array(u_shared), "u_point_rel": u_point_rel}
 
@@ -87,7 +94,7 @@ def main() -> None:
     args = parser.parse_args()
     print(machine())
     print(f"draws {args.first}…{args.first + args.draws - 1} of seed {args.seed} (rig.bench.draws), each measured "
-          f"with {CAMPAIGN.name}'s table on its own simulated rig; z of the point-to-point part (per-filter shift out)")
+          f"with {CAMPAIGN.name}'s table on its own simulated rig; z of the point-to-point part (shared errors out)")
     head = (f"{'draw':22s} {'n':>5s} {'cov k=2':>7s} {'std z':>6s} {'mean z':>6s} {'med u_pt':>8s} {'med|rel|':>8s} "
             f"{'max|sh|':>7s} {'u_corr':>7s} {'cov tot':>7s} {'std zt':>6s}")
     print(head)

@@ -90,7 +90,8 @@ class Runner:
         self.eta = Eta(self.rig_time, self.runs.expected.seconds)
         g = rig.geometry
         constants = RowConstants(g.angle_u_deg, lobe_view_u_deg(g.angle_u_deg, g.readback_u_deg),
-                                 campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel)
+                                 campaign.limits.grazing_limit_deg, devices.camera.sensor.calibration_u_rel,
+                                 readback_u_deg=g.readback_u_deg)
         self.ledger = Ledger(writer, done_rows, constants, ill.correction == "interpolate", self.eta, self.rig_time)
         self.phase = PhaseFile(writer.dir, self.rig_time)
         self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait,

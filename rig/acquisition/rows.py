@@ -44,6 +44,9 @@ class RowConstants:
     lobe_view_u_deg: float        # ... of the view direction relative to a specular lobe (budget.lobe_view_u_deg)
     grazing_limit_deg: float      # θi from which a point is flagged grazing_incidence
     calibration_u_rel: float      # relative uncertainty of the camera's luminance calibration
+    #: The part of angle_u_deg that differs from one position to the next (geometry.readback_u_deg); the rest,
+    #: the axes' fixed zero errors, is shared by every point (u_rel_angle_zero). None: all of it differs.
+    readback_u_deg: float | None = None
 
 
 def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float,
@@ -66,6 +69,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
                           attenuation_u_rel=cap.u_rel_attenuation,
                           e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,
                           theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg,
+                          readback_u_deg=constants.readback_u_deg,
                           u_meter_cal_lx=meter_cal_u_rel * e_perp_lx)
     return {
         "point_id": m.point.point_id, "series": m.point.series,

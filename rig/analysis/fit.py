@@ -25,9 +25,9 @@ their parameters span 1e-12 to 1.65e4, Tables 3 and 6 of the paper):
 * RMSE, NRMSE and NCC are always computed on the unweighted values (rig.analysis.metrics);
 * a dataset's weights are its point-to-point u (`u_brdf_point_per_sr`, issue 34): the calibrations shared by
   every point (rig.physics.budget.CORRELATED_COMPONENTS) do not scatter the points about the model, they move
-  them together, so they go to `stderr_correlated` instead: each shared relative error δ·s_k (one per source:
-  the calibrations of camera and meter, each filter's transmission) moves the optimum by the linear response
-  Δx = J⁺ (s f / σ), and the sources' moves add in quadrature (`correlated_sources`).
+  them together, so they go to `stderr_correlated` instead: each shared relative error δ·s_k (one per
+  source: the calibrations of camera and meter, the axes' zeros, each filter's transmission) moves the
+  optimum by the linear response Δx = J⁺ (s f / σ), and the sources' moves add in quadrature (`point_u`).
 """
 
 from __future__ import annotations
@@ -352,14 +352,16 @@ def point_u(dataset: Dataset, keep: np.ndarray) -> tuple[np.ndarray, dict[str, n
     """The u that weights a fit of the `keep` rows, and the shared errors to propagate (module docstring).
 
     A dataset that gives the point-to-point part on every row is weighted by it, and its calibrations are
-    the shared sources: the camera's and the meter's together (every point), each filter position's
-    transmission (its points). Otherwise (an import, a dataset written before the split) the whole
-    `u_brdf_per_sr` weights it, with nothing apart."""
+    the shared sources: the camera's and the meter's together (every point), the axes' zero errors
+    (every point, through tan θi), each filter position's transmission (its points). Otherwise (an import,
+    a dataset written before the split) the whole `u_brdf_per_sr` weights it, with nothing apart."""
     cols = dataset.columns
     if "u_brdf_point_per_sr" not in cols or not np.all(usable_u(dataset["u_brdf_point_per_sr"][keep])):
         return dataset["u_brdf_per_sr"][keep], {}
     shared = {"calibration": np.hypot(*(np.nan_to_num(dataset[c][keep]) if c in cols else np.zeros(keep.sum())
                                         for c in ("u_rel_calibration", "u_rel_meter_calibration")))}
+    if "u_rel_angle_zero" in cols:
+        shared["axis zeros"] = np.nan_to_num(dataset["u_rel_angle_zero"][keep])
     if "filter_position" in cols and "u_rel_attenuation" in cols:
         position, u_att = dataset["filter_position"][keep], np.nan_to_num(dataset["u_rel_attenuation"][keep])
         for p in np.unique(position[np.isfinite(position) & (position > 0)]):

@@ -33,11 +33,13 @@ BUDGET_COLUMNS = {
     "u_rel_illuminance": "E⊥: meter readings (repeatability, range)",
     "u_rel_meter_calibration": "E⊥: the meter head's calibration factor (its certificate)",
     "u_rel_drift": "lamp drift between E⊥ readings",
-    "u_rel_angle": "incidence angle, through tan θi",
+    "u_rel_angle": "incidence angle, through tan θi: the axes' read-back, which differs from point to point",
+    "u_rel_angle_zero": "incidence angle, through tan θi: the axes' fixed zero errors, shared by every point",
 }
 #: Components that are one error for every point they serve: a calibration certificate's (camera, meter
-#: head) for the whole campaign, a filter's transmission for every point taken through that filter.
-CORRELATED_COMPONENTS = ("u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation")
+#: head) for the whole campaign, a filter's transmission for every point taken through that filter, the axes'
+#: zero errors for every point (through tan θi, so not one relative shift but one error δ).
+CORRELATED_COMPONENTS = ("u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero")
 #: The two parts of u_brdf_per_sr, in brdf.csv after the budget (absolute, 1/sr).
 SPLIT_COLUMNS = {
     "u_brdf_point_per_sr": "point-to-point part of u_brdf_per_sr: every component but the correlated ones",
@@ -81,14 +83,19 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
                  u_texture_cd_m2: float, u_lobe_cd_m2: float, lobe_angle_u_rel: float, calibration_u_rel: float,
                  attenuation_u_rel: float,
                  e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float, theta_i_deg: float,
-                 angle_u_deg: float, u_meter_cal_lx: float = 0.0) -> dict[str, float]:
+                 angle_u_deg: float, u_meter_cal_lx: float = 0.0,
+                 readback_u_deg: float | None = None) -> dict[str, float]:
     """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
 
     The camera parts are relative to the luminance, or to its uncertainty where the ROI is
     (nearly) black, so that an unlit point does not divide by zero. The dark frames' noise is
     taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift and the meter's
-    calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once.
+    calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once. The incidence angle's u
+    (`angle_u_deg`) splits into its read-back part (`readback_u_deg`, None: all of it) and the fixed zero
+    errors' rest.
     """
+    readback = angle_u_deg if readback_u_deg is None else min(readback_u_deg, angle_u_deg)
+    tan_i = math.tan(math.radians(min(theta_i_deg, 89.9999)))
     lum = max(abs(luminance_cd_m2), u_luminance_cd_m2, 1e-30)
     return {
         "u_rel_noise": math.sqrt(max(u_noise_cd_m2 ** 2 - u_dark_cd_m2 ** 2, 0.0)) / lum,
@@ -101,7 +108,8 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
         "u_rel_illuminance": math.sqrt(max(u_e_perp_lx ** 2 - u_drift_lx ** 2 - u_meter_cal_lx ** 2, 0.0)) / e_perp_lx,
         "u_rel_meter_calibration": u_meter_cal_lx / e_perp_lx,
         "u_rel_drift": u_drift_lx / e_perp_lx,
-        "u_rel_angle": math.tan(math.radians(min(theta_i_deg, 89.9999))) * math.radians(angle_u_deg),
+        "u_rel_angle": tan_i * math.radians(readback),
+        "u_rel_angle_zero": tan_i * math.radians(math.sqrt(angle_u_deg ** 2 - readback ** 2)),
     }
 
 

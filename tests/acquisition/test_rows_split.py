@@ -59,3 +59,16 @@ def test_interpolated_rows_have_calibrations_apart():
                           CONSTANTS)
     for row in rows:
         check_split(row)
+
+
+def test_the_axes_zero_errors_are_shared_and_their_read_back_is_not():
+    constants = RowConstants(angle_u_deg=0.01, lobe_view_u_deg=lobe_view_u_deg(0.01, 0.002), grazing_limit_deg=88.0,
+                             calibration_u_rel=CAMERA_CAL, readback_u_deg=0.002)
+    row = latest_row(measurement(5.0), reading(1000.0, 0.0), constants)
+    tan_i = math.tan(math.radians(30.0))
+    assert row["u_rel_angle"] == pytest.approx(tan_i * math.radians(0.002), rel=1e-9)
+    assert row["u_rel_angle_zero"] == pytest.approx(tan_i * math.radians(math.sqrt(0.01 ** 2 - 0.002 ** 2)), rel=1e-9)
+    corr = math.sqrt(CAMERA_CAL ** 2 + METER_CAL ** 2 + FILTER_CAL ** 2 + row["u_rel_angle_zero"] ** 2)
+    assert row["u_brdf_correlated_per_sr"] / row["brdf_per_sr"] == pytest.approx(corr, rel=1e-9)
+    before = latest_row(measurement(5.0), reading(1000.0, 0.0), CONSTANTS)       # no read-back: all of it differs
+    assert before["u_rel_angle_zero"] == 0.0 and before["u_brdf_per_sr"] == pytest.approx(row["u_brdf_per_sr"])
