@@ -203,7 +203,8 @@ class LineInstrument(RetryingDevice):
     def apply(self, setting: Setting, *args: object, policy: RetryPolicy | None = None,
               tolerate_errors: bool = False) -> None:
         """One setting and its confirmation (`put`) under `policy` (default: the driver's), reconnecting
-        before each retry; settings are absolute, so sending one twice is harmless."""
+        before each retry: a setting whose confirmation was lost is sent again, so it must be absolute (a
+        level, a state), never relative."""
         self.retrying(setting.text(*args), lambda: self.put(setting, *args, tolerate_errors=tolerate_errors),
                       policy=policy)
 
