@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib import colormaps, rc_context
@@ -49,8 +50,8 @@ DPI = 110
 #: The 3D lobe is seen from this far off the plane of incidence (degrees of azimuth): seen along the plane, one axis
 #: is edge-on and its tick labels pile up.
 LOBE_VIEW_OFF_PLANE_DEG = 55.0
-#: The plane figure's text size: the report shows it at about two thirds of its width.
-PLANE_RC = {"font.size": 11}
+#: The plane figure's text size (points): the report shows it at about two thirds of its width.
+PLANE_FONT_PT = 11
 MEASURED, FITTED, LAMP = "#1f77b4", "#d62728", "#ff7f0e"
 RETRO_SHADE, SPECULAR_SHADE = "#fdd9b5", "#d6e6f5"
 RETRO_TEXT, SPECULAR_TEXT = "#a0522d", "#2f5f8f"
@@ -146,7 +147,8 @@ def _draw_cartesian(ax, signed, f, u, off, tol_deg, curve, theta_i) -> None:
 
 
 def plane_figure(ds: Dataset, series: int, model: Model | None = None, tol_deg: float = PLANE_TOL_DEG) -> Figure:
-    """Plane-of-incidence figure of one series (module docstring); draw it within `rc_context(PLANE_RC)`."""
+    """Plane-of-incidence figure of one series (module docstring); draw it within `rc_context` with font.size
+    PLANE_FONT_PT, as `plot_plane` does."""
     theta_i, phi_i = ds.series_incidence_deg(series)
     t, n = plane_axes(theta_i, phi_i)
     rows = ds["series"] == series
@@ -168,7 +170,7 @@ def plane_figure(ds: Dataset, series: int, model: Model | None = None, tol_deg: 
 def plot_plane(ds: Dataset, series: int, out: Path, model: Model | None = None,
                tol_deg: float = PLANE_TOL_DEG) -> Path:
     """The plane-of-incidence figure of one series, as a PNG."""
-    with rc_context(PLANE_RC):
+    with rc_context({"font.size": PLANE_FONT_PT}):
         plane_figure(ds, series, model, tol_deg).savefig(out, dpi=DPI, bbox_inches="tight", pad_inches=0.2)
     return out
 
@@ -194,7 +196,7 @@ def lobe_figure(ds: Dataset, series: int, model: Model | None = None) -> Figure:
     surface = _hemisphere_surface(model, wi) if model else None
     reach = 1.15 * max(np.max(np.abs(pts)), np.max(np.abs(surface)) if surface is not None else 0.0)
     fig = Figure(figsize=(10, 7.5))
-    ax = fig.add_axes((0.0, 0.02, 0.78, 0.84), projection="3d")
+    ax: Any = fig.add_axes((0.0, 0.02, 0.78, 0.84), projection="3d")        # an Axes3D: mpl_toolkits has no stubs
     if surface is not None:
         ax.plot_surface(*np.moveaxis(surface, -1, 0), color=FITTED, alpha=0.18, lw=0.3, edgecolor="#e8a0a0",
                         rstride=3, cstride=3)

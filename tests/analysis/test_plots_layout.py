@@ -110,7 +110,7 @@ def test_plane_legends_beside_the_data(e2e_dataset, truth_fit):
     """The plane figure at every incidence: its two legends and the colour bar meet neither panel, and no text is
     smaller than MIN_FONT_PT."""
     for series in range(5):
-        with rc_context(plots.PLANE_RC):
+        with rc_context({"font.size": plots.PLANE_FONT_PT}):
             fig = plots.plane_figure(e2e_dataset, series, plots._record_model(truth_fit))
             d = Drawn(fig)
         polar, cartesian = fig.axes[:2]
