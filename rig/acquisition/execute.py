@@ -152,10 +152,18 @@ class Prepared:
 
     def run(self, open_devices: RigOpener, *, progress: ProgressCallback | None = None, handle_signals: bool = False,
             sampler: SamplerFactory | None = None) -> RunOutcome:
-        """Connect with `open_devices`, measure, and say how the run ended (`execute`)."""
+        """Connect with `open_devices`, measure, and say how the run ended (`execute`); an opener that fails at
+        once fails the run as one whose devices do not answer."""
         source = sampler(self.campaign, self.rig, self.plan, self.logged_batches) if sampler else None
-        return execute(self, open_devices(self.campaign, self.rig), progress, handle_signals=handle_signals,
-                       source=source)
+        return execute(self, _opening(open_devices, self.campaign, self.rig), progress,
+                       handle_signals=handle_signals, source=source)
+
+
+@contextmanager
+def _opening(open_devices: RigOpener, campaign: Campaign, rig: RigConfig) -> Iterator[RigDevices]:
+    """`open_devices(campaign, rig)` called as the run enters it, within the run's handling of failures."""
+    with open_devices(campaign, rig) as devices:
+        yield devices
 
 
 def new_dataset(prepared: Prepared) -> DatasetWriter:

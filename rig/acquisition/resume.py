@@ -23,12 +23,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from rig.acquisition.execute import Prepared
 from rig.acquisition.preflight import preflight
 from rig.acquisition.rig_change import LINK_KEYS, instrument_difference, link_changes
-from rig.config.campaign import CampaignError, campaign_sha256, load_campaign
+from rig.config.campaign import Campaign, CampaignError, campaign_sha256, load_campaign
 from rig.config.rigfile import RigConfig, load_rig_config
 from rig.core import events
 from rig.core.jsonfile import JsonFileError, parse_json
@@ -184,6 +184,65 @@ def _same_instruments(folder: Path, recorded: RigConfig, rig_file: str | Path) -
     return rig, link_changes(recorded, rig)
 
 
+class _Recorded(NamedTuple):
+    """The run a folder's manifest records, checked against the files as they are now."""
+
+    status: Any
+    campaign: Campaign
+    path: Path
+    changed: bool                       # the campaign file differs from the one the run started with (forced)
+    rig: RigConfig
+    changes: dict[str, list[Any]]       # with `--rig`: how each device is reached now (rig.acquisition.rig_change)
+
+
+def _recorded(folder: Path, manifest: dict, force: bool, rig_file: str | Path | None) -> _Recorded:
+    """The campaign and rig of the run in `folder`; ResumeError if it is complete, its campaign file changed
+    (unless `force`), its rig configuration is not valid, or `rig_file` describes other instruments."""
+    status = manifest.get("status")
+    if status == "complete":
+        raise ResumeError(f"{folder}: the campaign is complete; nothing to resume")
+    info = _manifest_part(folder, manifest, "campaign", dict)
+    rig_config = _manifest_part(folder, manifest, "rig", dict).get("config")
+    path = find_campaign_file(folder, info)
+    changed = campaign_sha256(path) != info.get("sha256")
+    if changed and not force:
+        raise ResumeError(f"{folder}: campaign file {path} changed since the run started (sha256 differs); "
+                          "resuming would mix two campaigns. Use --force to resume with the file as it is now")
+    campaign = load_campaign(path)
+    try:
+        rig = RigConfig.model_validate(rig_config)
+    except ValueError as exc:
+        raise ResumeError(f"{folder / 'dataset.json'}: rig.config is not a valid rig configuration "
+                          f"({str(exc).splitlines()[0]})") from None
+    changes: dict[str, list[Any]] = {}
+    if rig_file is not None:
+        rig, changes = _same_instruments(folder, rig, rig_file)
+    return _Recorded(status, campaign, path, changed, rig, changes)
+
+
+def _log_resume(writer: DatasetWriter, run: _Recorded, recovered: list[dict], *, force: bool,
+                rig_file: str | Path | None) -> list[dict]:
+    """Append the recovered written-ahead rows, log the resume (events and the manifest's `resumes`; with
+    `rig_file`, the rig configuration a further resume uses); the rows the folder now holds."""
+    manifest = writer.manifest
+    resumes = _manifest_part(writer.dir, manifest, "resumes", list)
+    for row in recovered:
+        writer.append_row(row)
+    if recovered:
+        writer.event(events.PENDING_RECOVERED, points=len(recovered), point_ids=[r["point_id"] for r in recovered])
+    done = _rows(writer.dir)
+    new_rig = {} if rig_file is None else {"rig_file": str(Path(rig_file).resolve()), "rig_changes": run.changes}
+    writer.event(events.RESUME, previous_status=run.status, measured_before=len(done), campaign_changed=run.changed,
+                 torn_bytes_cut=writer.cut_bytes, **new_rig)
+    resumes = resumes + [{"time_utc": utc_now(), "previous_status": run.status,
+                          "measured_before": len(done), "forced": force and run.changed, **new_rig}]
+    rig_entry = {} if rig_file is None else {           # a further resume reaches the devices where they are now
+        "rig": {**manifest["rig"], "config": run.rig.model_dump(mode="json")}}
+    writer.update_manifest(status="running", resumes=resumes, **rig_entry)
+    (writer.dir / events.PHASE_FILE).unlink(missing_ok=True)    # the last run's: the monitor goes by the events
+    return done                                                  # until this run writes its own (rig.acquisition.phase)
+
+
 def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | Path | None = None) -> Prepared:
     """Lock and check `folder`, pass the pre-flight (rig.acquisition.preflight), recover its written-ahead points
     and log the resume; `rig_file` (`--rig`) replaces the manifest's rig configuration if it describes the same
@@ -191,56 +250,21 @@ def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | P
     folder = Path(folder)
     writer = DatasetWriter.reopen(folder)
     try:
-        manifest = writer.manifest
-        status = manifest.get("status")
-        if status == "complete":
-            raise ResumeError(f"{folder}: the campaign is complete; nothing to resume")
-        info = _manifest_part(folder, manifest, "campaign", dict)
-        resumes = _manifest_part(folder, manifest, "resumes", list)
-        rig_config = _manifest_part(folder, manifest, "rig", dict).get("config")
-        path = find_campaign_file(folder, info)
-        changed = campaign_sha256(path) != info.get("sha256")
-        if changed and not force:
-            raise ResumeError(f"{folder}: campaign file {path} changed since the run started (sha256 differs); "
-                              "resuming would mix two campaigns. Use --force to resume with the file as it is now")
-        campaign = load_campaign(path)
-        try:
-            rig = RigConfig.model_validate(rig_config)
-        except ValueError as exc:
-            raise ResumeError(f"{folder / 'dataset.json'}: rig.config is not a valid rig configuration "
-                              f"({str(exc).splitlines()[0]})") from None
-        changes: dict[str, list[Any]] = {}
-        if rig_file is not None:
-            rig, changes = _same_instruments(folder, rig, rig_file)
-        done = _rows(folder)
-        done_ids = {r["point_id"] for r in done}
+        run = _recorded(folder, writer.manifest, force, rig_file)
+        done_ids = {r["point_id"] for r in _rows(folder)}
         recovered = [row for pid, row in _pending_rows(folder).items() if pid not in done_ids]
-        checked = preflight(campaign, rig, folder, campaign_file=path,
+        checked = preflight(run.campaign, run.rig, folder, campaign_file=run.path,
                             rig_file=rig_file if rig_file is not None else folder / "dataset.json",
                             done=done_ids | {r["point_id"] for r in recovered},
                             adaptive_log=lambda candidates: _logged_batches(folder, candidates))
-        plan = checked.plan
-        unknown = done_ids - {p.point_id for p in plan.points}
+        unknown = done_ids - {p.point_id for p in checked.plan.points}
         if unknown and not force:
             raise ResumeError(f"{folder}: {len(unknown)} measured points are not in the campaign's plan "
                               f"(e.g. {sorted(unknown)[0]}); use --force to resume anyway")
         writer.space_needed_bytes = folder_size(folder) + checked.space_needed_bytes
-        for row in recovered:
-            writer.append_row(row)
-        if recovered:
-            writer.event(events.PENDING_RECOVERED, points=len(recovered),
-                         point_ids=[r["point_id"] for r in recovered])
-        done = _rows(folder)
-        new_rig = {} if rig_file is None else {"rig_file": str(Path(rig_file).resolve()), "rig_changes": changes}
-        writer.event(events.RESUME, previous_status=status, measured_before=len(done), campaign_changed=changed,
-                     torn_bytes_cut=writer.cut_bytes, **new_rig)
-        resumes = resumes + [{"time_utc": utc_now(), "previous_status": status,
-                              "measured_before": len(done), "forced": force and changed, **new_rig}]
-        rig_entry = {} if rig_file is None else {           # a further resume reaches the devices where they are now
-            "rig": {**manifest["rig"], "config": rig.model_dump(mode="json")}}
-        writer.update_manifest(status="running", resumes=resumes, **rig_entry)
-        return Prepared(campaign, path, rig, plan, folder, writer.space_needed_bytes, writer, done,
-                        checked.logged_batches)
+        done = _log_resume(writer, run, recovered, force=force, rig_file=rig_file)
+        return Prepared(run.campaign, run.path, run.rig, checked.plan, folder, writer.space_needed_bytes, writer,
+                        done, checked.logged_batches)
     except BaseException:
         writer.close()
         raise

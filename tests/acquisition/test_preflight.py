@@ -11,6 +11,7 @@ from rig.acquisition.resume import ResumeError
 from rig.acquisition.run import resume_campaign, run_campaign
 from rig.config.campaign import CampaignError, load_campaign, parse_campaign
 from rig.config.rigfile import RigConfig
+from rig.core.errors import DeviceError
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_writer import DatasetWriter
 
@@ -97,3 +98,15 @@ def test_a_complete_dataset_is_not_resumed(tmp_path):
     out, _, _ = _unfinished(tmp_path, status="complete")
     with pytest.raises(ResumeError, match="the campaign is complete; nothing to resume"):
         resume_campaign(out, never_opened)
+
+
+def test_a_resume_removes_the_last_runs_phase(tmp_path):
+    """Until the resumed run writes its own phase, the monitor goes by the events (the `resume` event: starting),
+    not by the phase the last run ended in."""
+    out, _, _ = _unfinished(tmp_path)
+    (out / "phase.json").write_text('{"phase": "closing", "detail": "", "rig_time_s": 9.0, "time_utc": "x"}\n')
+
+    def unreachable(campaign, rig):
+        raise DeviceError("camera", "cannot connect: [Errno 111] Connection refused")
+    outcome = resume_campaign(out, unreachable)
+    assert (outcome.status, outcome.written) == ("failed", True) and not (out / "phase.json").exists()
