@@ -316,7 +316,7 @@
     const canvas = $("polar"), { ctx, w, h } = surface(canvas);
     const pts = [...st.points.values()].filter((q) => q.s === series && q.f > 0);
     canvas.dataset.drawn = String(pts.length);
-    // φo labels outside the circle, θo ring labels over the points with a halo: nothing sits under a point.
+    // φo labels outside the circle, the θo rings named in a corner: no label sits under a point.
     const R = Math.min(w - 140, h - 44) / 2, cx = 34 + R, cy = h / 2;
     ctx.strokeStyle = GRID; ctx.lineWidth = 1;
     for (const t of [30, 60, 90]) { ctx.beginPath(); ctx.arc(cx, cy, (R * t) / 90, 0, 2 * Math.PI); ctx.stroke(); }
@@ -331,6 +331,8 @@
       ctx.textAlign = align; ctx.textBaseline = base; ctx.fillText(label, x, y);
     }
     legend(ctx, 4, 4, [[ORANGE, "lamp (θi, φi)"], [BLUE, "mirror"]], true);
+    ctx.fillStyle = MUTED; ctx.textAlign = "left"; ctx.textBaseline = "bottom";
+    ctx.fillText("rings: θo 30°, 60°, 90°", 4, h - 2);                  // outside the circle: under no point
     const at = (t, p) => [cx + (R * t) / 90 * Math.cos((p * Math.PI) / 180), cy - (R * t) / 90 * Math.sin((p * Math.PI) / 180)];
     if (inc) {
       const [lx, ly] = at(inc.ti, inc.pi), [mx, my] = at(inc.ti, inc.pi + 180);
@@ -342,11 +344,7 @@
     const t = (v) => (hi > lo ? (v - lo) / (hi - lo) : 0.5);
     pts.sort((a, b) => a.f - b.f);
     for (const q of pts) { const [x, y] = at(q.to, q.po); dot(ctx, x, y, 4.5, colour(t(Math.log10(q.f))), "rgba(0,0,0,.35)"); }
-    ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.lineWidth = 3; ctx.strokeStyle = "rgba(255,255,255,.85)";
-    for (const t of [30, 60, 90]) {
-      const x = cx + (R * t) / 90 * 0.71 + 2, y = cy + (R * t) / 90 * 0.71 + 1;
-      ctx.strokeText("θo " + t + "°", x, y); ctx.fillStyle = MUTED; ctx.fillText("θo " + t + "°", x, y);
-    }
+
     const bx = w - 64, by = 22, bh = h - 46;
     for (let i = 0; i < bh; i++) { ctx.fillStyle = colour(1 - i / bh); ctx.fillRect(bx, by + i, 12, 1.5); }
     ctx.strokeStyle = "#9ca3af"; ctx.strokeRect(bx, by, 12, bh);
