@@ -50,6 +50,8 @@ def print_adaptive_plan(plan: Plan, campaign: Campaign, rig: RigConfig) -> None:
     first = Counter((p.theta_i_deg, p.phi_i_deg) for p in plan.points)
     print(f"  first pass: {len(plan.points)} points, planned rig time {format_duration(planned_time_s(plan, rig))} "
           f"after warm-up ({len(spec.mandatory)} mandatory pairs)")
+    warm = expected_warmup(campaign, rig)
+    print(f"  before it, the lamp warm-up: {format_duration(rig.lamp.ramp_s + warm.seconds)} ({warm.source})")
     for (theta_i, phi_i), n in sorted(first.items()):
         print(f"    ({plan_angle(theta_i):>5s}°, {plan_angle(phi_i):>5s}°)  {n:4d}")
     stops = ([f"the planned rig time after warm-up reaches {format_duration(spec.budget_rig_time_s)}"]
