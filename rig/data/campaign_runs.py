@@ -152,7 +152,7 @@ def _float(value: Any) -> Any:
 def _legacy_runs(manifest: Mapping[str, Any], events: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The runs of a dataset written before rig time continued, as `runs` entries: each with the
     `rig_time_shift_s` that places its rig times on the campaign's axis (it restarted at 0)."""
-    resumes = [r for r in manifest.get("resumes") or [] if isinstance(r, Mapping)]
+    resumes = [r for r in _list(manifest.get("resumes")) if isinstance(r, Mapping)]
     entries = []
     for run in runs_of(manifest, events):
         ended = resumes[run.index].get("previous_status") if run.index < len(resumes) else None
@@ -161,6 +161,11 @@ def _legacy_runs(manifest: Mapping[str, Any], events: Sequence[Mapping[str, Any]
                         "status": ended if isinstance(ended, str) else "unknown",
                         "warmups": [_warmup_entry(w) for w in run.warmups]})
     return entries
+
+
+def _list(value: Any) -> list:
+    """A manifest's list, or [] where it is something else (a hand-edited manifest)."""
+    return value if isinstance(value, list) else []
 
 
 def _warmup_entry(w: WarmUp) -> dict[str, Any]:
@@ -198,7 +203,7 @@ class RunRecorder:
         self.offset_s = reached_s(manifest, events, done_rows) if resumed else 0.0
         runs = manifest["runs"] if continuous(manifest) else _legacy_runs(manifest, events)
         self.runs = closed_runs(runs, self.offset_s)
-        past = [w["warmup_s"] for r in self.runs for w in (r.get("warmups") or [])[:1]
+        past = [w["warmup_s"] for r in self.runs for w in _list(r.get("warmups"))[:1]
                 if isinstance(w, Mapping) and _number(w.get("warmup_s")) is not None]
         self.expected = expected or warmup_estimate(lamp, rig, past, " in this dataset")
         self.runs.append({"run": len(self.runs), "started_utc": _utc(manifest), "resumed": resumed,
@@ -221,7 +226,7 @@ class RunRecorder:
 
 def _utc(manifest: Mapping[str, Any]) -> str | None:
     """When this run starts: the last resume's time, else the dataset's creation."""
-    resumes = manifest.get("resumes") or []
+    resumes = _list(manifest.get("resumes"))
     last = resumes[-1] if resumes and isinstance(resumes[-1], Mapping) else {}
     return last.get("time_utc") or manifest.get("created_utc")
 

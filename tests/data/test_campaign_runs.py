@@ -116,3 +116,11 @@ def test_a_resume_expects_the_warm_up_its_dataset_had(tmp_path):
     second = RunRecorder(writer, [], Lamp(), RigConfig())
     assert second.expected.seconds == 720.0 and "in this dataset" in second.expected.source   # at a check: 300+7×60
     writer.close()
+
+
+def test_a_hand_edited_runs_list_does_not_stop_a_resume(tmp_path):
+    writer = DatasetWriter(tmp_path / "ds", {"runs": ["junk", {"warmups": {"not": "a list"}, "status": "running"}],
+                                             "resumes": "not a list"})
+    recorder = RunRecorder(writer, [], Lamp(), RigConfig(), KNOWN)
+    assert recorder.offset_s == 0.0 and writer.manifest["runs"][-1]["run"] == 1
+    writer.close()
