@@ -29,3 +29,26 @@ def test_the_plan_of_the_quick_campaign_is_within_ten_percent_of_its_run(tmp_pat
     warmup = manifest["runs"][0]["warmups"][0]["warmup_s"]
     minutes, secs = divmod(round(warmup), 60)
     assert re.search(r"then (\d+:\d\d:\d\d)", printed)[1] == f"0:{minutes:02d}:{secs:02d}"   # the replay is exact
+
+
+def test_a_real_rig_expects_the_median_of_its_last_warm_ups_beside_the_output_folder(tmp_path):
+    """A rig file of real devices (nothing is connected): the datasets of the same rig in the output folder's parent
+    give the warm-up; another rig's are not taken; with none, the rule's least, said to be a lower bound."""
+    from rig.config.campaign import parse_campaign
+    from rig.config.rigfile import load_rig_config
+    from rig.session.warmup_estimate import expected_warmup
+
+    rig = load_rig_config(CAMPAIGNS / "rigs" / "example-lab.yaml")
+    campaign = parse_campaign({"name": "c", "sample": {"id": "S"}, "incidence": [{"phi": 0, "theta": [0]}],
+                               "viewing": [{"centred_on": "normal", "theta": [10], "phi": [0]}],
+                               "output": {"dir": str(tmp_path / "runs" / "next")}})
+    none = expected_warmup(campaign, rig)
+    assert none.seconds == 360.0 and none.source.startswith("at least")
+    for name, rig_name, warmups in (("a", rig.name, [700.0]), ("b", rig.name, [900.0, 50.0]), ("c", "other", [5.0]),
+                                    ("d", rig.name, [800.0])):
+        (tmp_path / "runs" / name).mkdir(parents=True)
+        runs = [{"started_utc": f"2026-01-0{i + 1}T00:00:00Z", "warmups": [{"warmup_s": w}]}
+                for i, w in enumerate(warmups)]
+        (tmp_path / "runs" / name / "dataset.json").write_text(json.dumps({"rig": {"name": rig_name}, "runs": runs}))
+    known = expected_warmup(campaign, rig)
+    assert known.seconds == 780.0 and "median of the last 4 warm-ups of rig example-lab" in known.source   # at a check
