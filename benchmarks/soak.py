@@ -17,13 +17,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))  # the soak's runs are a test helper (tests/soak_runs.py)
 
-from soak_runs import compare, run_fault_free, run_with_faults  # noqa: E402
-
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.config.campaign import load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig  # noqa: E402
 from rig.planning.plan import build_plan  # noqa: E402
 from rig.simulators.faults import FaultSchedule  # noqa: E402
+from soak_runs import compare, run_fault_free, run_with_faults  # noqa: E402
 
 
 def main() -> int:

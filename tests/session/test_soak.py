@@ -3,12 +3,11 @@ faults, a device outage, an axis alarm and a lamp burn-out with replacement; the
 holds exactly the fault-free run's points, values within uncertainty, nothing lost."""
 
 
-from soak_runs import compare, run_fault_free, run_with_faults
-
 from repo_paths import E2E_CAMPAIGN as CAMPAIGN
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.simulators.faults import FaultSchedule
+from soak_runs import compare, run_fault_free, run_with_faults
 
 
 def test_soak_reduced(tmp_path):
