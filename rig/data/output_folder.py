@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
+from rig.core.events import PHASE_FILE
 from rig.data.dataset_format import DatasetError
 from rig.data.folderlock import LOCK_NAME
 
@@ -126,11 +127,12 @@ def format_bytes(n: float) -> str:
 
 
 def folder_size(folder: Path) -> int:
-    """Bytes in the files of `folder` and its sub-folders (images/), the lock and the reserve left out."""
+    """Bytes in the files of `folder` and its sub-folders (images/), the working files left out: the lock, the
+    reserve and the run's phase (rig.acquisition.phase: a few bytes replaced as the run goes, not the dataset's)."""
     total = 0
     for root, _, files in os.walk(folder):
         for name in files:
-            if name not in (LOCK_NAME, RESERVE_NAME):
+            if name not in (LOCK_NAME, RESERVE_NAME, PHASE_FILE, PHASE_FILE + ".tmp"):
                 try:
                     total += os.stat(os.path.join(root, name)).st_size
                 except OSError:
