@@ -56,3 +56,11 @@ def test_the_bars_count_draws_by_the_smallest_budget_that_reaches_the_table():
     assert "reached by ≤ 0.25×: 1/3 draws (33%; bar ≥ 80%: NOT met)" in text
     assert "by ≤ 0.5×: 2/3 (NOT every draw)" in text
     assert "0.20, 0.45, —" in text
+
+
+def test_road_quantities_beyond_the_rigs_reach_never_decide_but_are_named():
+    table, adaptive = result(0, TABLE, None, 100.0, 0.05), result(0, "adaptive ×0.25", 0.25, 20.0, 0.05)
+    table.errors.update(R_L_rel=0.01, Qd_rel=0.01)
+    adaptive.errors.update(R_L_rel=0.2, Qd_rel=0.01)
+    assert smallest_reaching([table, adaptive]) is adaptive
+    assert "its R_L error (extrapolated) is worse than the table's" in verdict([table, adaptive])
