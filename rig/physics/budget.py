@@ -122,15 +122,16 @@ def split_u(budget: Mapping[str, float], brdf_per_sr: float, u_brdf_per_sr: floa
 
 
 def campaign_budget(rows: Sequence[Mapping[str, float]], columns: Mapping[str, str]) -> list[dict]:
-    """Per component: median and 95th percentile of its relative u, and its median share of u². A component
-    no row gives (an empty cell, or a dataset written before it existed) is left out."""
+    """Per component: median and 95th percentile of its relative u, its median share of u², and whether it is
+    shared by the points (`correlated`, CORRELATED_COMPONENTS). A component no row gives (an empty cell, or a
+    dataset written before it existed) is left out."""
     if not rows:
         return []
     comp = {c: np.array([_number(r.get(c)) for r in rows]) for c in columns}
     comp = {c: np.nan_to_num(v) for c, v in comp.items() if np.any(np.isfinite(v))}
     total_sq = np.sum([v ** 2 for v in comp.values()], axis=0)
     total_sq = np.where(total_sq > 0, total_sq, 1.0)
-    table = [{"component": c, "meaning": columns[c],
+    table = [{"component": c, "meaning": columns[c], "correlated": c in CORRELATED_COMPONENTS,
               "median_u_rel": float(np.median(v)), "p95_u_rel": float(np.percentile(v, 95)),
               "median_share_of_variance": float(np.median(v ** 2 / total_sq))}
              for c, v in comp.items()]

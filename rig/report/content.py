@@ -258,7 +258,8 @@ def budget(ds: Dataset) -> list[BudgetRow]:
         return []
     table = np.column_stack([ds[c] for c in present])
     rows = [dict(zip(present, r)) for r in table[np.all(np.isfinite(table), axis=1)].tolist()]
-    return [BudgetRow(b["component"], b["meaning"], b["median_u_rel"], b["p95_u_rel"], b["median_share_of_variance"])
+    return [BudgetRow(b["component"], b["meaning"] + (" [correlated: shared by the points]" if b["correlated"] else ""),
+                      b["median_u_rel"], b["p95_u_rel"], b["median_share_of_variance"])
             for b in mark_not_stated(campaign_budget(rows, present), not_stated(ds.manifest))]
 
 

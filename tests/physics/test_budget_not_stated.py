@@ -33,3 +33,8 @@ def test_dataset_json_and_the_report_say_so(tmp_path):
     assert sum(NOT_STATED in b["meaning"] for b in budget) == 2
     rows = dict(_calibrations(MANIFEST))
     assert rows["Camera calibration u (rel.)"] == NOT_STATED and rows["Meter calibration u (rel.)"] != NOT_STATED
+
+
+def test_the_budget_says_which_components_are_shared():
+    shared = {b["component"] for b in table() if b["correlated"]}
+    assert shared == {"u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero"}
