@@ -26,7 +26,11 @@ def format_report(result: FitResult) -> str:
         se = result.stderr[name]
         note = ("fixed" if name in result.fixed else "± undetermined by the data" if not math.isfinite(se)
                 else f"± {se:.3g}  ({se / abs(value):.2%})" if value else f"± {se:.3g}")
-        lines.append(f"  {name:<8s} {value:12.6g}  {note}" + ("  [at bound]" if name in result.at_bound else ""))
+        lines.append(f"  {name:<8s} {value:12.6g}  {note}" + _shared(result, name)
+                     + ("  [at bound]" if name in result.at_bound else ""))
+    if any(_shared(result, name) for name in result.params):
+        lines.append("  shared ±: the parameter's standard uncertainty from the errors all points share (the "
+                     "calibrations, the axes' zeros), apart from the scatter's ± (docs/uncertainty.md)")
     m = result.metrics
     lines.append(f"RMSE {m['rmse']:.4g} sr⁻¹   NRMSE {m['nrmse']:.4g}   NCC {_fmt(m['ncc'], '.4f')}")
     lines.append(f"converged {_status(result)} ({result.message}); "
@@ -34,6 +38,16 @@ def format_report(result: FitResult) -> str:
                  + f"{result.n_starts_at_best}/{result.n_starts} starts reached the best cost; "
                  f"{result.nfev} model evaluations; {result.wall_s:.2f} s")
     return "\n".join(lines)
+
+
+def _shared(result: FitResult, name: str, relative: bool = True) -> str:
+    """` shared ± u` of a parameter (its stderr_correlated; with `relative`, also as a share of the value), or
+    nothing where no shared u moves it."""
+    sc = result.stderr_correlated.get(name, 0.0)
+    if name in result.fixed or not sc or not math.isfinite(sc):
+        return ""
+    value = result.params[name]
+    return f" shared ± {sc:.3g}" + (f" ({sc / abs(value):.2%})" if relative and value else "")
 
 
 def _fmt(v: float, spec: str) -> str:
@@ -56,13 +70,17 @@ def format_comparison(results: list[FitResult]) -> str:
     rows = [head, "-" * len(head)]
     for r in sorted(results, key=lambda r: r.metrics["rmse"]):
         m = r.metrics
-        params = ", ".join(f"{k} {v:.3g}" + (" [at bound]" if k in r.at_bound else "") for k, v in r.params.items())
+        params = ", ".join(f"{k} {v:.3g}" + _shared(r, k, relative=False)
+                           + (" [at bound]" if k in r.at_bound else "") for k, v in r.params.items())
         rows.append(f"{r.model:<16s} {m['rmse']:9.4g} {m['nrmse']:9.4g} {_fmt(m['ncc'], '7.3f'):>7s} "
                     f"{r.wall_s:7.2f} {_status(r):>8s} {f'{r.n_starts_at_best}/{r.n_starts}':>6s}  {params}")
     rows.append("")
     if any(r.at_bound for r in results):
         rows.append("[at bound]: the best fit lies on the parameter's limit, where the model cannot follow the data "
                     "(conv 'at bound', not 'yes')")
+    if any(_shared(r, k) for r in results for k in r.params):
+        rows.append("shared ±: a parameter's standard uncertainty from the errors all points share (calibrations, "
+                    "the axes' zeros)")
     rows.append("starts: the global stage's local runs that reached the best cost, of all of them")
     return "\n".join(rows)
 
