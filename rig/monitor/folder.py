@@ -231,28 +231,28 @@ class FolderFollower:
             raise BadLine(f"a JSON {type(event).__name__}, not an event object")
         kind = short_text(event["event"], 60) if isinstance(event.get("event"), str) else "?"
         row, ids = event.get("row"), event.get("point_ids")
-        if kind == "point_pending" and isinstance(row, dict) and not isinstance(row.get("point_id"), str):
+        if kind == events.POINT_PENDING and isinstance(row, dict) and not isinstance(row.get("point_id"), str):
             raise BadLine("point_pending: its row's point_id is not text")
-        if kind == "points_discarded" and isinstance(ids, list) and not all(isinstance(p, str) for p in ids):
+        if kind == events.POINTS_DISCARDED and isinstance(ids, list) and not all(isinstance(p, str) for p in ids):
             raise BadLine("points_discarded: a point id that is not text")
         rig_s = self.axis.place(kind, finite_float(event.get("rig_time_s")), self.manifest)
         summary = summarize_event(event) if kind not in QUIET_EVENTS else ""
-        if kind == "point_pending" and isinstance(row, dict):
+        if kind == events.POINT_PENDING and isinstance(row, dict):
             if row["point_id"] not in self.final:
                 self._keep(row, final=False)
-        elif kind == "points_discarded" and isinstance(ids, list):
+        elif kind == events.POINTS_DISCARDED and isinstance(ids, list):
             for pid in ids:
                 if pid in self.pending:
                     self.pending.discard(pid)
                     self.budget_rows.pop(pid, None)
                     self._budget = None
                     self.changes.append({"k": "d", "id": pid})
-        elif kind == "illuminance":
+        elif kind == events.ILLUMINANCE:
             self.changes.append({"k": "e", "t": rig_s, "lx": finite_float(event.get("illuminance_normal_lx")),
                                  "u": finite_float(event.get("u_lx")), "r": self.axis.run})
-        elif kind == "adaptive_batch" and isinstance(event.get("points"), list):
+        elif kind == events.ADAPTIVE_BATCH and isinstance(event.get("points"), list):
             self.batch_points += len(event["points"])      # an adaptive campaign's plan grows batch by batch
-        elif kind in ("lamp_on", "warmup_stable", "warmup_not_stable"):
+        elif kind in (events.LAMP_ON, events.WARMUP_STABLE, events.WARMUP_NOT_STABLE):
             self.changes.append({"k": "l", "t": rig_s, "i": finite_float(event.get("current_a")), "r": self.axis.run,
                                  "v": finite_float(event.get("voltage_v", event.get("lamp_voltage_v")))})
         self.warmup.note(kind, event, rig_s, self.changes, self.axis.run)

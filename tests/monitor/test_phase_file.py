@@ -58,7 +58,8 @@ def test_a_run_writes_its_phase_as_it_goes(tmp_path):
             phase = json.loads((out / "phase.json").read_text())["phase"]
             if not seen or seen[-1] != phase:
                 seen.append(phase)
-    assert run_campaign(campaign, RigConfig(), out, open_campaign_rig, progress=note).status == "complete"
+    outcome = run_campaign(campaign, RigConfig(), out, open_campaign_rig, progress=note)
+    assert outcome.status == "complete", outcome.error
     assert seen[:2] == ["warm-up", "measuring"]
     assert json.loads((out / "phase.json").read_text())["phase"] == "closing"
     assert not (out / "phase.json.tmp").exists()
