@@ -1,4 +1,5 @@
-"""The checks every run passes before any device is opened or anything is written: a new run and a resume alike.
+"""The checks every run passes before any device is opened or anything is written: a new run and a resume alike;
+what passes is the run itself (`Prepared`, rig.acquisition.execute), ready to `.run(...)`.
 
 One sequence, so that `rig run`, `rig run --resume`, the benches and the tests refuse the same inputs with the same
 messages: the campaign against the rig (rig.config.campaign.check_campaign_for_rig), the plan (a mandatory pair of
@@ -9,11 +10,12 @@ the disk space the points left will take (rig.acquisition.diskspace).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Collection
+from dataclasses import replace
 from pathlib import Path
 
 from rig.acquisition.diskspace import estimate_dataset_bytes, space_problem
+from rig.acquisition.execute import Prepared
 from rig.config.campaign import Campaign, CampaignError, check_campaign_for_rig
 from rig.config.rigfile import RigConfig
 from rig.data.dataset_format import DatasetError
@@ -21,32 +23,32 @@ from rig.data.output_folder import require_new_output
 from rig.devices import check_devices
 from rig.planning.candidates import candidate_plan, logged_points
 from rig.planning.plan import build_plan
-from rig.planning.points import Plan
 
 #: What to do when a resumed folder's disk is too full.
 RESUME_SPACE_REMEDY = "free some space, or move the folder to a disk with room and resume there"
 
 
-@dataclass(frozen=True)
-class Preflight:
-    """What the checks found: the plan and the room it needs."""
-
-    plan: Plan
-    #: Bytes the points left will add to the folder (rig.acquisition.diskspace), for the message of a full disk.
-    space_needed_bytes: int
-    #: A resumed adaptive campaign's `adaptive_batch` events (rig.planning.candidates): their points are in `plan`.
-    logged_batches: Sequence[dict] = ()
+def prepare_run(campaign: Campaign, rig: RigConfig, out: Path, *, campaign_file: str | Path | None = None,
+                rig_file: str | Path = "<built-in rig>") -> Prepared:
+    """A new run of `campaign` on `rig` into the new folder `out`, once the pre-flight passed (its ConfigFileError
+    or DatasetError otherwise, naming `campaign_file` and `rig_file`); the manifest records `campaign_file`."""
+    path = Path(campaign_file).resolve() if campaign_file else None      # the manifest's record works from anywhere
+    return preflight(campaign, rig, out, campaign_file=campaign_file or f"campaign {campaign.name}",
+                     rig_file=rig_file, campaign_path=path)
 
 
 def preflight(campaign: Campaign, rig: RigConfig, out: Path, *, campaign_file: str | Path = "<campaign>",
-              rig_file: str | Path = "<rig>", done: Collection[str] | None = None,
-              adaptive_log: Callable[[set[str]], list[dict]] | None = None) -> Preflight:
-    """Check that `campaign` can run on `rig` into `out`; the plan, or the first problem raised with its file's
+              rig_file: str | Path = "<rig>", campaign_path: Path | None = None, done: Collection[str] | None = None,
+              adaptive_log: Callable[[set[str]], list[dict]] | None = None) -> Prepared:
+    """Check that `campaign` can run on `rig` into `out`: the run, or the first problem raised with its file's
     name (`campaign_file`, `rig_file`): a ConfigFileError for the inputs, a DatasetError for the folder or disk.
 
-    `done`: None for a new dataset folder (`out` must be absent or empty); for a resume, the point ids the folder
-    already holds (rows and recovered written-ahead points), which the disk space leaves out. `adaptive_log(ids)`:
-    a resumed adaptive campaign's logged batches among the candidate ids, whose points join the plan.
+    The run holds the plan, the bytes the points left will add to the folder (rig.acquisition.diskspace, for the
+    message of a full disk), `campaign_path` (the manifest's record of the campaign file) and a resumed adaptive
+    campaign's logged batches. `done`: None for a new dataset folder (`out` must be absent or empty); for a resume,
+    the point ids the folder already holds (rows and recovered written-ahead points), which the disk space leaves
+    out. `adaptive_log(ids)`: a resumed adaptive campaign's `adaptive_batch` events among the candidate ids
+    (rig.planning.candidates), whose points join the plan.
     """
     check_campaign_for_rig(campaign, rig, campaign_file)
     try:
@@ -75,4 +77,4 @@ def preflight(campaign: Campaign, rig: RigConfig, out: Path, *, campaign_file: s
         problem = space_problem(out, needed, RESUME_SPACE_REMEDY)
     if problem:
         raise DatasetError(problem)
-    return Preflight(plan, needed, logged)
+    return Prepared(campaign, campaign_path, rig, plan, out, needed, logged_batches=logged)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -253,7 +254,7 @@ def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | P
         run = _recorded(folder, writer.manifest, force, rig_file)
         done_ids = {r["point_id"] for r in _rows(folder)}
         recovered = [row for pid, row in _pending_rows(folder).items() if pid not in done_ids]
-        checked = preflight(run.campaign, run.rig, folder, campaign_file=run.path,
+        checked = preflight(run.campaign, run.rig, folder, campaign_file=run.path, campaign_path=run.path,
                             rig_file=rig_file if rig_file is not None else folder / "dataset.json",
                             done=done_ids | {r["point_id"] for r in recovered},
                             adaptive_log=lambda candidates: _logged_batches(folder, candidates))
@@ -263,8 +264,7 @@ def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | P
                               f"(e.g. {sorted(unknown)[0]}); use --force to resume anyway")
         writer.space_needed_bytes = folder_size(folder) + checked.space_needed_bytes
         done = _log_resume(writer, run, recovered, force=force, rig_file=rig_file)
-        return Prepared(run.campaign, run.path, run.rig, checked.plan, folder, writer.space_needed_bytes, writer,
-                        done, checked.logged_batches)
+        return replace(checked, space_needed_bytes=writer.space_needed_bytes, writer=writer, done_rows=done)
     except BaseException:
         writer.close()
         raise

@@ -3,7 +3,7 @@
 Both pass the same pre-flight (rig.acquisition.preflight: campaign × rig, the devices' drivers, the plan, the disk
 space) before any device is opened or anything written, and end in `Prepared.run` (rig.acquisition.execute). A
 caller that says something between the checks and the connection (`rig run` prints what it is about to measure)
-calls `prepare_run` or `prepare_resume`, then `.run(...)`.
+calls `prepare_run` (rig.acquisition.preflight) or `prepare_resume` (rig.acquisition.resume), then `.run(...)`.
 
 Which rig to open, and an adaptive campaign's sampler, are parameters (`open_devices`, `sampler`), not imports:
 connecting (rig.session.connect.open_campaign_rig) and the adaptive sampler (rig.session.adaptive_sampler) live in
@@ -15,22 +15,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rig.acquisition.execute import Prepared, RigOpener, RunOutcome, SamplerFactory
-from rig.acquisition.preflight import preflight
+from rig.acquisition.execute import RigOpener, RunOutcome, SamplerFactory
+from rig.acquisition.preflight import prepare_run
 from rig.acquisition.resume import prepare_resume
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
 from rig.core.values import ProgressCallback
-
-
-def prepare_run(campaign: Campaign, rig: RigConfig, out: Path, *, campaign_file: str | Path | None = None,
-                rig_file: str | Path = "<built-in rig>") -> Prepared:
-    """A new run of `campaign` on `rig` into the new folder `out`, once the pre-flight passed (its ConfigFileError
-    or DatasetError otherwise, naming `campaign_file` and `rig_file`); the manifest records `campaign_file`."""
-    checked = preflight(campaign, rig, out, campaign_file=campaign_file or f"campaign {campaign.name}",
-                        rig_file=rig_file)
-    path = Path(campaign_file).resolve() if campaign_file else None      # the manifest's record works from anywhere
-    return Prepared(campaign, path, rig, checked.plan, out, checked.space_needed_bytes)
 
 
 def run_campaign(campaign: Campaign, rig: RigConfig, out: Path, open_devices: RigOpener, *,

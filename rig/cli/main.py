@@ -14,9 +14,9 @@ from pathlib import Path
 from rig import __version__
 from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.acquisition.execute import RunOutcome
+from rig.acquisition.preflight import prepare_run
 from rig.acquisition.progress import ProgressBar, end_progress_lines, format_duration
 from rig.acquisition.resume import prepare_resume
-from rig.acquisition.run import prepare_run
 from rig.cli import bench, calibrate, export, fit, import_alta, monitor, plot, predict, report, sim
 from rig.config.campaign import Campaign, CampaignError, check_campaign_for_rig, load_campaign
 from rig.config.files import ConfigFileError
