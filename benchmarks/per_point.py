@@ -15,7 +15,7 @@ in-process camera) and prints, per measured point:
 - the process's CPU time (every peer runs in this process), steadier than wall time on a busy machine;
 - the bare acquisition loop, measured in the same run on a fresh simulated rig: lamp on, then for
   every point of the same plan start the stage and the arm toward it, wait for both, read the four
-  encoders back and acquire the point's frames exactly as the pipeline does (`acquire_through` with
+  encoders back and acquire the point's frames exactly as the pipeline does (`capturer.acquire()` with
   the run's capturer, of the campaign's capture settings and with its dark-frame cache: probe, bracket,
   frames and darks through the same drivers), and nothing else: no HDR reduce of the frames, no suspender checks, no E⊥
   readings, no rows, no dataset. What the pipeline adds on top of it is its overhead.
@@ -40,7 +40,6 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.attenuation import acquire_through  # noqa: E402
 from rig.acquisition.capturer import capturer_for  # noqa: E402
 from rig.acquisition.engine import Runner  # noqa: E402
 from rig.acquisition.execute import manifest_for  # noqa: E402
@@ -167,7 +166,7 @@ def bare_loop(campaign: Campaign, plan: Plan, rig: RigConfig) -> Run:
             for point in plan.points:
                 mover.move(point.motors_deg)
                 mover.read_back()
-                acquire_through(None, capturer)
+                capturer.acquire()
             wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
         devices.lamp.set_output(False)
     return Run(wall, len(plan.points), meter.trips, meter.wire_s, meter.camera_s, cpu)

@@ -16,8 +16,10 @@ Per point, on the filter the previous point left in the beam:
    pixels clipped in every exposure (the acquisition says so), move to the next
    denser filter and take the point again. A camera that calibrates its own pictures
    never clips (it has its own attenuation): the wheel stays on the clearest filter.
-A rig without a wheel, and points that never saturate, pay nothing: no probe is
-taken while the clearest filter is in the beam, so the wheel never moves for them.
+The wheel wraps the run's capturer once (`AttenuatingCapturer`, chosen by rig.acquisition.capturer
+`capturer_for`): it takes points with the capturer's interface, so the engine does not know it is there, and
+a rig without a wheel never reaches this module. Points that never saturate pay nothing: no probe is taken
+while the clearest filter is in the beam, so the wheel never moves for them.
 
 The wheel turns one position per move, the shorter way round: a move blocks the
 link for about a second per position, and the lamp supply's watchdog is fed only
@@ -36,11 +38,12 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields, replace
 
-from rig.acquisition.capturer import Capturer, PointAcquisition
+from rig.acquisition.capturing import Capturer, PointAcquisition
 from rig.config.rigfile import AttenuatorConfig
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
-from rig.core.values import PointCapture
+from rig.core.values import PointCapture, SensorInfo, Window
 from rig.drivers.interfaces import Attenuator, RigDevices
 
 #: A clearer filter is chosen when its predicted ROI peak at the shortest exposure stays below this fraction
@@ -121,7 +124,7 @@ class Attenuation:
             self._at = position
             self.clock.sleep(0.0)          # between single-position moves: due keep-alives (the lamp's) run
         self.index = index
-        self.event("filter", device="attenuator", what=reason, position=target.position,
+        self.event(events.FILTER, device="attenuator", what=reason, position=target.position,
                    transmission=target.transmission)
 
 
@@ -142,12 +145,39 @@ def attenuation_for(devices: RigDevices, filters: AttenuatorConfig | None,
                        event, devices.clock)
 
 
-def acquire_through(attenuation: Attenuation | None, capturer: Capturer) -> tuple[PointAcquisition, Filter | None]:
-    """One point's acquisition, through the filter it needs if the rig has a wheel; and that filter."""
-    return (capturer.acquire(), None) if attenuation is None else attenuation.acquire(capturer)
+@dataclass(frozen=True)
+class AttenuatedAcquisition:
+    """A point's acquisition through the filter `used`: it reduces to the capture as if no filter were in the
+    beam (`attenuated`)."""
+
+    acquisition: PointAcquisition
+    used: Filter
+
+    @property
+    def clipped(self) -> bool:
+        return self.acquisition.clipped
+
+    def reduce(self) -> PointCapture:
+        return attenuated(self.acquisition.reduce(), self.used)
 
 
-def reduce_through(acquisition: PointAcquisition, used: Filter | None) -> PointCapture:
-    """The acquisition reduced, then the filter's transmission taken out (`attenuated`)."""
-    capture = acquisition.reduce()
-    return capture if used is None else attenuated(capture, used)
+class AttenuatingCapturer:
+    """The run's capturer behind the filter wheel: each point through the filter it needs (module docstring)."""
+
+    def __init__(self, capturer: Capturer, attenuation: Attenuation):
+        self.capturer, self.attenuation = capturer, attenuation
+
+    @property
+    def sensor(self) -> SensorInfo:
+        return self.capturer.sensor
+
+    @property
+    def roi(self) -> Window:
+        return self.capturer.roi
+
+    def acquire(self) -> AttenuatedAcquisition:
+        return AttenuatedAcquisition(*self.attenuation.acquire(self.capturer))
+
+    def probe(self, exposure_s: float) -> tuple[float, float]:
+        """The wrapped capturer's probe, through the filter in the beam."""
+        return self.capturer.probe(exposure_s)

@@ -24,7 +24,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from rig.acquisition.alignment import align_run
-from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
+from rig.acquisition.attenuation import attenuation_for
 from rig.acquisition.capturer import capturer_for
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
@@ -47,7 +47,6 @@ from rig.data.campaign_runs import RunRecorder
 from rig.data.dataset_writer import DatasetWriter, utc_now
 from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
-from rig.physics import geometry as geo
 from rig.physics.budget import lobe_view_u_deg
 from rig.physics.footprint import view_footprint_deg
 from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule
@@ -74,9 +73,7 @@ class Runner:
         self.progress: ProgressCallback = progress or (lambda p: None)
         self.source = source
         self.settings = campaign.capture.settings()
-        self.capturer = capturer_for(devices.camera, self.settings, devices.clock)    # the capture path, chosen once
         self.optics = camera_optics(rig)
-        self.footprint_deg = view_footprint_deg(self.optics, self.capturer.roi)
         ill = campaign.illuminance
         self.schedule = ReadingSchedule(ill.remeasure, ill.every)
         self.runs = RunRecorder(writer, done_rows, campaign.lamp, rig, warmup)     # the manifest's `runs`
@@ -97,7 +94,9 @@ class Runner:
         self.suspenders = install(campaign, rig, devices, lamp_reference_v=lambda: self.lamp_ref_v, wait=self._wait,
                                   mark=self.ledger.mark)
         given.route_events(self._device_event)         # from here on a driver's retry is reported
-        self.attenuation = attenuation_for(devices, rig.attenuator, self._device_event)
+        self.capturer = capturer_for(devices.camera, self.settings, devices.clock,    # the capture path, chosen once
+                                     attenuation_for(devices, rig.attenuator, self._device_event))
+        self.footprint_deg = view_footprint_deg(self.optics, self.capturer.roi)
         self.mover = Mover(devices, rig)
         self.eta.plan(point_estimates_s(plan, self.mover.position, rig.axes, NOMINAL_CAPTURE_S), self.done_ids)
 
@@ -229,7 +228,7 @@ class Runner:
         self.requests.check_stop()
 
     def _capture(self) -> PointCapture:
-        return reduce_through(*acquire_through(self.attenuation, self.capturer))
+        return self.capturer.acquire().reduce()
 
     # -- one point ---------------------------------------------------------------------------
     def _take_point(self, point: PlannedPoint, next_point: PlannedPoint | None) -> list[PlannedPoint]:
@@ -259,14 +258,12 @@ class Runner:
 
     def _measure_point(self, point: PlannedPoint, next_point: PlannedPoint | None) -> Measurement:
         """Move, read back, expose; the move to `next_point` starts before the frames are merged."""
-        self.mover.move(point.motors_deg)
-        motors = self.mover.read_back()
-        angles = geo.forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
+        motors, angles = self.mover.arrive(point)
         time_utc, rig_time = utc_now(), self.rig_time()
-        acquisition, used = acquire_through(self.attenuation, self.capturer)
+        acquisition = self.capturer.acquire()
         if next_point is not None:
             self.mover.start(next_point.motors_deg)      # merging and writing overlap the next move
-        cap = reduce_through(acquisition, used)
+        cap = acquisition.reduce()
         m = np.radians(motors)
         lit = roi_inside_spot(m[0], m[1], m[2], m[3], self.settings.roi_px, self.optics,
                               self.rig.geometry.spot_diameter_m / 2)

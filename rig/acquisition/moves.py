@@ -1,9 +1,10 @@
 """The engine's moves: stage and arm together, never through a forbidden zone, with a timeout.
 
 Motor positions are (stage_vertical, stage_normal, arm_azimuth, arm_polar) in degrees, the
-order of the plan and of brdf.csv. Both positioners start before either is waited for, so
-the four axes run at once; a move may be started and waited for later (the engine starts
-the move to the next point before merging the frames of this one).
+order of the plan and of brdf.csv; a point's read-back comes with the BRDF angles it gives (`arrive`).
+Both positioners start before either is waited for, so the four axes run at once; a move may be
+started and waited for later (the engine starts the move to the next point before merging the frames
+of this one).
 
 With a geometry calibration (the rig file's `geometry.calibration_file`, docs/geometry-calibration.md)
 every axis's position is the physical angle, encoder reading + the axis's zero offset; after an
@@ -19,10 +20,12 @@ from collections.abc import Callable
 import numpy as np
 
 from rig.config.rigfile import RigConfig
+from rig.core import events
 from rig.drivers.interfaces import RigDevices
+from rig.physics.geometry import BrdfAngles, forward_deg
 from rig.planning.collisions import path_crosses, zones_of
 from rig.planning.ordering import travel_time_s
-from rig.planning.points import Motors
+from rig.planning.points import Motors, PlannedPoint
 
 
 class CollisionError(RuntimeError):
@@ -90,12 +93,20 @@ class Mover:
         self.dev.arm.wait(timeout_s)
         self.position, self.moving_to = target, None
 
+    def arrive(self, point: PlannedPoint) -> tuple[Motors, BrdfAngles]:
+        """Be at `point`'s motor positions; where the axes are then (the read-back, which the dataset records) and
+        the BRDF angles they give (rig.physics.geometry.forward_deg, φ at a pole as `point` says): the point's
+        geometry from one call."""
+        self.move(point.motors_deg)
+        motors = self.read_back()
+        return motors, forward_deg(*motors, phi_i_at_pole_deg=point.phi_i_deg, phi_o_at_pole_deg=point.phi_o_deg)
+
     def park(self, target: Motors, event: Callable[..., None]) -> None:
         """Go to `target` at the end of a run; a move that would cross a forbidden zone is left out, said in an
         event (`park_skipped`), never raised: the exit path goes on to make the rig safe."""
         try:
             self.move(target)
         except CollisionError as exc:
-            event("park_skipped", reason=str(exc))
+            event(events.PARK_SKIPPED, reason=str(exc))
             return
-        event("parked", position_deg=list(target))
+        event(events.PARKED, position_deg=list(target))

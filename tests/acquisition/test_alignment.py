@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rig.acquisition.alignment import AlignmentError, align_on_specular, align_run, scan_grid_deg
-from rig.acquisition.attenuation import acquire_through, attenuation_for, reduce_through
+from rig.acquisition.attenuation import attenuation_for
 from rig.acquisition.capturer import capturer_for
 from rig.acquisition.moves import Mover
 from rig.config.campaign import Capture, SpecularAlignment
@@ -28,9 +28,9 @@ class Session:
         self.world = sim.world
         self.mover = Mover(dev, rig)
         self.events: list[tuple[str, dict]] = []
-        att = attenuation_for(dev, rig.attenuator, lambda kind, **f: None)
-        capturer = capturer_for(dev.camera, Capture().settings(), dev.clock)
-        self.capture = lambda: reduce_through(*acquire_through(att, capturer))
+        capturer = capturer_for(dev.camera, Capture().settings(), dev.clock,
+                                attenuation_for(dev, rig.attenuator, lambda kind, **f: None))
+        self.capture = lambda: capturer.acquire().reduce()
 
     def event(self, kind, **fields):
         self.events.append((kind, fields))

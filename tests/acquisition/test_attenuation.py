@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 from rig.acquisition.attenuation import (
+    AttenuatedAcquisition,
+    AttenuatingCapturer,
     Attenuation,
     Filter,
-    acquire_through,
     attenuated,
-    reduce_through,
     shorter_way,
 )
+from rig.acquisition.capture import RawCapturer
 from rig.acquisition.capturer import capturer_for
 from rig.config.campaign import Capture
 from rig.config.rigfile import simulated_rig
@@ -68,6 +69,12 @@ def rig():
     return world, wheel, attenuation, capturer_for(SimCamera(world), Capture().settings(), world.clock), events
 
 
+def through(attenuation: Attenuation, capturer) -> tuple[AttenuatedAcquisition, Filter]:
+    """A point acquired by `capturer` behind the wheel (as the run's capturer on a rig with one), and its filter."""
+    acquisition = AttenuatingCapturer(capturer, attenuation).acquire()
+    return acquisition, acquisition.used
+
+
 def truth_luminance(world: SimWorld, theta_i: float, theta_o: float, phi_o: float) -> float:
     wi, wo = (np.array([np.sin(np.radians(t)) * np.cos(np.radians(p)), np.sin(np.radians(t)) * np.sin(np.radians(p)),
                         np.cos(np.radians(t))]) for t, p in ((theta_i, 0.0), (theta_o, phi_o)))
@@ -77,10 +84,10 @@ def truth_luminance(world: SimWorld, theta_i: float, theta_o: float, phi_o: floa
 def test_the_peak_is_taken_through_the_clearest_filter_that_does_not_clip(rig):
     world, wheel, attenuation, capturer, events = rig
     posed(world, 20, 20, 180)                                # the mirror direction: 382 sr⁻¹
-    acquisition, used = acquire_through(attenuation, capturer)
+    acquisition, used = through(attenuation, capturer)
     assert used.position > 1 and wheel.moves == list(range(2, used.position + 1))    # one denser step at a time
-    assert not acquisition.roi_merge.clipped.any()
-    capture = reduce_through(acquisition, used)
+    assert not acquisition.clipped and not acquisition.acquisition.roi_merge.clipped.any()
+    capture = acquisition.reduce()
     assert "roi_saturated" not in capture.flags and capture.filter_position == used.position
     assert capture.u_rel_attenuation == used.u_rel and capture.transmission == used.transmission
     truth = truth_luminance(world, 20, 20, 180)
@@ -92,18 +99,27 @@ def test_the_peak_is_taken_through_the_clearest_filter_that_does_not_clip(rig):
 def test_without_a_wheel_the_peak_is_a_lower_bound(rig):
     world, _, _, capturer, _ = rig
     posed(world, 20, 20, 180)
-    acquisition, used = acquire_through(None, capturer)
-    capture = reduce_through(acquisition, used)
-    assert used is None and "roi_saturated" in capture.flags and capture.filter_position == 0
+    capture = capturer.acquire().reduce()
+    assert "roi_saturated" in capture.flags and capture.filter_position == 0
+
+
+def test_the_wheel_wraps_the_capturer_once_and_only_on_a_rig_with_one(rig):
+    """capturer_for chooses per run: the camera's own capturer without a wheel, behind the wheel with one."""
+    world, _, attenuation, _, _ = rig
+    settings = Capture().settings()
+    assert type(capturer_for(SimCamera(world), settings, world.clock)) is RawCapturer
+    wrapped = capturer_for(SimCamera(world), settings, world.clock, attenuation)
+    assert isinstance(wrapped, AttenuatingCapturer) and type(wrapped.capturer) is RawCapturer
+    assert wrapped.roi == wrapped.capturer.roi and wrapped.sensor == wrapped.capturer.sensor
 
 
 def test_a_dim_point_after_the_peak_goes_back_to_the_open_position_after_a_probe(rig):
     world, wheel, attenuation, capturer, _ = rig
     posed(world, 20, 20, 180)
-    acquire_through(attenuation, capturer)
+    through(attenuation, capturer)
     dense = wheel.at
     posed(world, 20, 30, 180)                                # off the lobe: the diffuse base, 0.016 sr⁻¹
-    _, used = acquire_through(attenuation, capturer)
+    _, used = through(attenuation, capturer)
     assert used.position == 1 and wheel.moves[-1] == 1 and dense > 1
 
 
@@ -111,7 +127,7 @@ def test_points_that_never_saturate_never_move_the_wheel(rig):
     world, wheel, attenuation, capturer, _ = rig
     for theta_o in (30, 40, 50):
         posed(world, 20, theta_o, 180)
-        _, used = acquire_through(attenuation, capturer)
+        _, used = through(attenuation, capturer)
         assert used.position == 1
     assert wheel.moves == []
 
@@ -136,16 +152,15 @@ def test_a_camera_with_its_own_attenuation_keeps_the_wheel_on_the_clearest_filte
     """Its acquisitions never count as clipped (they say so themselves): the overflowing point is flagged,
     not retaken through a denser filter, and the wheel is never probed."""
     world, wheel, attenuation, _, events = rig
-    capturer = capturer_for(OverflowingLmk(), Capture().settings(), world.clock)
-    acquisition, used = acquire_through(attenuation, capturer)
-    assert used.position == 1 and wheel.moves == [] and [e[1]["what"] for e in events] == ["start"]
-    assert "roi_saturated" in reduce_through(acquisition, used).flags
+    acquisition = capturer_for(OverflowingLmk(), Capture().settings(), world.clock, attenuation).acquire()
+    assert acquisition.used.position == 1 and wheel.moves == [] and [e[1]["what"] for e in events] == ["start"]
+    assert "roi_saturated" in acquisition.reduce().flags
 
 
 def test_attenuated_divides_every_luminance_and_adds_the_transmission_uncertainty(rig):
     world, _, _, capturer, _ = rig
     posed(world, 20, 30, 180)
-    capture = reduce_through(acquire_through(None, capturer)[0], None)
+    capture = capturer.acquire().reduce()
     nd = Filter(3, 0.01, 0.02)
     out = attenuated(capture, nd)
     for name in ("luminance_cd_m2", "roi_std_cd_m2", "u_noise_cd_m2", "u_dark_cd_m2", "u_texture_cd_m2"):

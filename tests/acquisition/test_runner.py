@@ -366,10 +366,10 @@ def test_runner_never_moves_through_a_forbidden_zone(tmp_path):
 
 def test_next_move_starts_before_the_point_is_merged_and_written(tmp_path, monkeypatch):
     """Merging (a second for a full frame) and writing overlap the move to the next point."""
-    import rig.acquisition.engine as runner_module
+    from rig.acquisition.capture import Acquisition  # the raw path's acquisition reduces (merges) itself
     log = []
-    reduce = runner_module.reduce_through
-    monkeypatch.setattr(runner_module, "reduce_through", lambda acq, used: (log.append("merge"), reduce(acq, used))[1])
+    reduce = Acquisition.reduce
+    monkeypatch.setattr(Acquisition, "reduce", lambda acq: (log.append("merge"), reduce(acq))[1])
     campaign = small_campaign()
     rig_cfg = RigConfig()
     writer = DatasetWriter(tmp_path / "ds", {})
