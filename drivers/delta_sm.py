@@ -40,6 +40,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, TypeVar
 
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers import delta_sm_commands as scpi
@@ -128,7 +129,7 @@ class DeltaSM(LineInstrument, LampSupply):
         self._identity = identity
         # Read before anything restarts it: 0 means it expired, so our previous session died with it armed.
         if self.query(scpi.WATCHDOG_STATE) == 0:
-            self.events("watchdog_expired_before_connect", device=self.name,
+            self.events(events.WATCHDOG_EXPIRED_BEFORE_CONNECT, device=self.name,
                         what="the supply's watchdog had switched the output off (a previous session ended "
                              "without closing)")
         self.max_current_a = self.query(scpi.MAX_CURRENT)
@@ -211,7 +212,7 @@ class DeltaSM(LineInstrument, LampSupply):
             bits = status & sum(scpi.BLOCKING_BITS)
             if bits != self._blocked_reported:
                 self._blocked_reported = bits
-                self.events("lamp_output_blocked", device=self.name, status_a=status, reason=reason)
+                self.events(events.LAMP_OUTPUT_BLOCKED, device=self.name, status_a=status, reason=reason)
             return OutputLoss(f"the supply blocks its output: {reason}", restart=False)
         if self.query(scpi.OUTPUT_STATE):
             return None
@@ -267,7 +268,7 @@ class DeltaSM(LineInstrument, LampSupply):
         try:
             self._check_watchdog(self.ask(scpi.WATCHDOG_STATE), self._once)
         except DeviceError as exc:
-            self.events("watchdog_feed_failed", device=self.name, error=str(exc))
+            self.events(events.WATCHDOG_FEED_FAILED, device=self.name, error=str(exc))
 
     def _check_watchdog(self, remaining_ms: int, policy: RetryPolicy | None) -> None:
         """The watchdog's state as read (the query restarted it). Expired (0): re-arm it. Off (-1): its time-out
@@ -280,7 +281,7 @@ class DeltaSM(LineInstrument, LampSupply):
         if self._on:
             self._watchdog_off = ("it expired" if expired else "found off: it expired or the supply restarted") + \
                 f", noticed at rig time {self.clock.now():.1f} s"
-        self.events("watchdog_expired" if expired else "watchdog_off", device=self.name,
+        self.events(events.WATCHDOG_EXPIRED if expired else events.WATCHDOG_OFF, device=self.name,
                     what="re-arming; the supply's output was switched off" if expired else
                     "re-applying the session's settings and re-arming (the supply may have restarted)")
         if expired:
@@ -302,7 +303,7 @@ class DeltaSM(LineInstrument, LampSupply):
         try:
             self._ramp_down()
         except DeviceError as exc:
-            self.events("switch_off_ramp_failed", device=self.name, error=str(exc))
+            self.events(events.SWITCH_OFF_RAMP_FAILED, device=self.name, error=str(exc))
         finally:
             self._output_off()
 

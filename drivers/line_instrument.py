@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, TypeVar
 
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.drivers.retry import EventSink, RetryingDevice, RetryPolicy, no_events
@@ -147,7 +148,7 @@ class LineInstrument(RetryingDevice):
         line = self.send(setting, *args)
         objections = self.confirm(line, timeout_s)
         if objections and tolerate_errors:
-            self.events("device_errors", device=self.name, what=line, errors=objections)
+            self.events(events.DEVICE_ERRORS, device=self.name, what=line, errors=objections)
         elif objections:
             raise DeviceError(self.name, f"{line!r} refused: {'; '.join(objections)}")
 

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 
@@ -49,15 +50,15 @@ def call_with_retry(action: Callable[[], T], *, device: str, what: str, clock: C
                     raise DeviceError(device, f"{what} failed {policy.attempts} times; last: {exc}",
                                       unanswered=True) from exc
                 raise
-            on_retry("retry", device=device, what=what, attempt=attempt, error=str(exc))
+            on_retry(events.RETRY, device=device, what=what, attempt=attempt, error=str(exc))
             clock.sleep(wait)
             wait = min(2 * wait, policy.max_backoff_s)
             if reconnect is not None:
                 try:
                     reconnect()
-                    on_retry("reconnect", device=device, what=what, attempt=attempt)
+                    on_retry(events.RECONNECT, device=device, what=what, attempt=attempt)
                 except DeviceError as again:
-                    on_retry("reconnect_failed", device=device, what=what, attempt=attempt, error=str(again))
+                    on_retry(events.RECONNECT_FAILED, device=device, what=what, attempt=attempt, error=str(again))
     raise AssertionError("unreachable")
 
 

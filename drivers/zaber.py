@@ -21,6 +21,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, TypeVar
 
+from rig.core import events
 from rig.core.clock import Clock
 from rig.core.errors import DeviceError
 from rig.core.motion import move_time_s
@@ -349,7 +350,7 @@ class ZaberAxis(Axis):
         expected = {NO_FLAG} if self.homed else {NO_FLAG, *NOT_HOMED}
         errors = [f for f in flags if f in ERROR_FLAGS and f not in expected]
         for flag in sorted(set(flags) - set(errors) - expected):
-            self.controller.events("warning", device=self.name, what=what, flag=flag_meaning(flag))
+            self.controller.events(events.WARNING, device=self.name, what=what, flag=flag_meaning(flag))
         if errors:
             if NOT_HOMED & set(errors):
                 self.homed = False

@@ -25,6 +25,7 @@ import numpy as np
 
 from rig.acquisition.moves import Mover
 from rig.config.campaign import SpecularAlignment
+from rig.core import events
 from rig.core.values import PointCapture
 from rig.physics import geometry as geo
 from rig.physics.peak_fit import LogPeak, PeakNotFound, fit_log_peak
@@ -86,7 +87,7 @@ def _scan(where: str, spec: SpecularAlignment, mover: Mover, capture: Callable[[
             raise AlignmentError(f"{where}: the ROI {'saturates' if cap.luminance_cd_m2 > 0 else 'is dark'} at "
                                  f"arm offset ({da:+.3f}°, {dp:+.3f}°); a filter wheel or another incidence is needed")
         luminance[k] = cap.luminance_cd_m2
-    event("alignment_scan", arm_azimuth_deg=arm_a, arm_polar_deg=arm_p, d_azimuth_deg=at_az.tolist(),
+    event(events.ALIGNMENT_SCAN, arm_azimuth_deg=arm_a, arm_polar_deg=arm_p, d_azimuth_deg=at_az.tolist(),
           d_polar_deg=at_polar.tolist(), luminance_cd_m2=luminance.tolist(), rig_clock_s=at_s.tolist())
     try:
         return fit_log_peak(at_az, at_polar, luminance, at_s)
@@ -132,6 +133,6 @@ def align_run(spec: SpecularAlignment, manifest: dict[str, Any], mover: Mover, c
         update_manifest(alignment=found.as_dict())
     else:
         found = ArmAlignment.from_dict(saved)
-    event("aligned", reused=saved is not None, **found.as_dict())
+    event(events.ALIGNED, reused=saved is not None, **found.as_dict())
     mover.align((found.arm_azimuth_zero_deg, found.arm_polar_zero_deg))
     return found

@@ -16,6 +16,7 @@ from typing import Any
 from rig.acquisition.eta import Eta
 from rig.config.campaign import Lamp
 from rig.config.rigfile import RigConfig
+from rig.core import events
 from rig.drivers.interfaces import RigDevices
 
 #: Rig time between two progress reports while the warm-up waits.
@@ -79,12 +80,12 @@ def warm_up(cfg: Lamp, rig: RigConfig, dev: RigDevices, wait: Callable[[float], 
     lamp.set_output(True)
     lamp.set_current(rig.lamp.current_a, ramp_s=rig.lamp.ramp_s)
     progress = _Progress(cfg, wait, rig_time, report, eta)
-    event("lamp_on", current_a=lamp.measure_current_a(), voltage_v=lamp.measure_voltage_v())
+    event(events.LAMP_ON, current_a=lamp.measure_current_a(), voltage_v=lamp.measure_voltage_v())
     next_check = cfg.warmup_min_s + cfg.warmup_check_s
     while (rest := cfg.warmup_min_s - progress.elapsed()) > 1e-9:
         progress.wait(min(cfg.warmup_check_s, rest), next_check)
         if cfg.warmup_min_s - progress.elapsed() > 1e-9:
-            event("warmup_wait", warmup_s=progress.elapsed(), expected_left_s=progress.left_s(next_check))
+            event(events.WARMUP_WAIT, warmup_s=progress.elapsed(), expected_left_s=progress.left_s(next_check))
     previous = dev.meter.read().illuminance_lx
     while True:
         progress.wait(cfg.warmup_check_s, next_check)
@@ -94,13 +95,13 @@ def warm_up(cfg: Lamp, rig: RigConfig, dev: RigDevices, wait: Callable[[float], 
         if change < cfg.warmup_stable_rel or elapsed >= cfg.warmup_max_s:
             break
         next_check = elapsed + cfg.warmup_check_s
-        event("warmup_check", illuminance_lx=now, change_rel=change, stable_rel=cfg.warmup_stable_rel,
+        event(events.WARMUP_CHECK, illuminance_lx=now, change_rel=change, stable_rel=cfg.warmup_stable_rel,
               warmup_s=elapsed, expected_left_s=progress.left_s(next_check))
         progress.last = f": E⊥ {now:.5g} lx, changed {change:.2%} in {cfg.warmup_check_s:g} s " \
                         f"(steady below {cfg.warmup_stable_rel:.2%})"
         previous = now
     voltage_v = lamp.measure_voltage_v()
-    event("warmup_stable" if change < cfg.warmup_stable_rel else "warmup_not_stable",
+    event(events.WARMUP_STABLE if change < cfg.warmup_stable_rel else events.WARMUP_NOT_STABLE,
           illuminance_lx=now, change_rel=change, warmup_s=elapsed, lamp_voltage_v=voltage_v)
     if eta is not None:
         eta.warming(0.0)

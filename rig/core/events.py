@@ -10,6 +10,8 @@ from __future__ import annotations
 # -- the run's course (rig.acquisition) -------------------------------------------------------
 DEVICES = "devices"                                   # connected: each device's identity
 LAMP_ON = "lamp_on"
+WARMUP_WAIT = "warmup_wait"                           # the warm-up waits for its next lamp check
+WARMUP_CHECK = "warmup_check"                         # a warm-up check: E⊥ and its change
 WARMUP_STABLE = "warmup_stable"
 WARMUP_NOT_STABLE = "warmup_not_stable"
 ILLUMINANCE = "illuminance"                           # an E⊥ measurement

@@ -21,10 +21,11 @@ from typing import Any, Protocol
 
 from rig.config.campaign import Lamp
 from rig.config.rigfile import RigConfig
+from rig.core import events as kinds  # the kinds' names; `events` names a dataset's records here
 from rig.planning.estimate import WarmupEstimate, warmup_estimate
 
 #: Events that end a warm-up (rig.acquisition.warmup), with its `warmup_s` and `change_rel`.
-WARMUP_ENDS = ("warmup_stable", "warmup_not_stable")
+WARMUP_ENDS = (kinds.WARMUP_STABLE, kinds.WARMUP_NOT_STABLE)
 
 
 def _number(value: Any) -> float | None:
@@ -81,7 +82,7 @@ def runs_of(manifest: Mapping[str, Any], events: Iterable[Mapping[str, Any]]) ->
     shift = reached = 0.0
     for event in events:
         kind = event.get("event")
-        if kind == "resume":
+        if kind == kinds.RESUME:
             reached = current.end_s if current is not None else reached
             current = None
             continue
@@ -102,13 +103,13 @@ def runs_of(manifest: Mapping[str, Any], events: Iterable[Mapping[str, Any]]) ->
 
 def _note(run: Run, kind: Any, event: Mapping[str, Any], t: float) -> None:
     """What a run's charts and warm-up list keep of one event at campaign rig time `t`."""
-    if kind == "illuminance" and (lx := _number(event.get("illuminance_normal_lx"))) is not None:
+    if kind == kinds.ILLUMINANCE and (lx := _number(event.get("illuminance_normal_lx"))) is not None:
         run.illuminance.append((t, lx, _number(event.get("u_lx"))))
-    elif kind in ("lamp_on", *WARMUP_ENDS):
+    elif kind in (kinds.LAMP_ON, *WARMUP_ENDS):
         run.lamp.append((t, _number(event.get("current_a")),
                          _number(event.get("voltage_v", event.get("lamp_voltage_v")))))
         if kind in WARMUP_ENDS and (w := _number(event.get("warmup_s"))) is not None:
-            run.warmups.append(WarmUp(t, w, kind == "warmup_stable", _number(event.get("change_rel"))))
+            run.warmups.append(WarmUp(t, w, kind == kinds.WARMUP_STABLE, _number(event.get("change_rel"))))
 
 
 def read_events(folder: Path) -> list[dict[str, Any]]:

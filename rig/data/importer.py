@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from rig import __version__
+from rig.core import events
 from rig.data.alta import CONVERSION_SKIP_REASONS, AltaData, RigPoints, read_alta, to_rig
 from rig.data.dataset_format import BRDF_COLUMNS
 from rig.data.dataset_writer import DatasetWriter, utc_now
@@ -137,7 +138,7 @@ def import_alta(path: str | Path, out_dir: str | Path, *, sample_id: str | None 
             writer.write_skipped(skipped)
             for row in _rows(points, ids, series, now):
                 writer.append_row(row)
-            writer.event("imported", source_file=str(path.resolve()), rows_in_file=len(data),
+            writer.event(events.IMPORTED, source_file=str(path.resolve()), rows_in_file=len(data),
                          measured=writer.n_rows, skipped=len(skipped))
             writer.update_manifest(status="complete", counts={"planned": len(data), "measured": writer.n_rows,
                                                               "skipped": len(skipped)})

@@ -14,6 +14,7 @@ import numpy as np
 
 from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
+from rig.core import events
 from rig.data.campaign_runs import rig_time_shifts
 from rig.physics.geometry import PLANE_TOL_DEG, plane_axes, plane_offsets, sph_to_vec
 from rig.planning.estimate import NOMINAL_CAPTURE_S
@@ -130,7 +131,7 @@ class RunAxis:
 
     def place(self, kind: str, rig_s: float | None, manifest: dict[str, Any]) -> float | None:
         """`rig_s` of an event of `kind` on the campaign's axis (None stays None)."""
-        if kind == "resume":
+        if kind == events.RESUME:
             self._resumed = True
         if rig_s is None:
             return None
@@ -156,11 +157,11 @@ class WarmupState:
              run: int) -> None:
         """Follow one event (of run `run`); a check's reading goes to `changes` for the page's E⊥ chart."""
         left = finite_float(event.get("expected_left_s"))
-        if kind in ("warmup_wait", "warmup_check") and rig_s is not None and left is not None:
+        if kind in (events.WARMUP_WAIT, events.WARMUP_CHECK) and rig_s is not None and left is not None:
             self.rest = (rig_s, left)
-        if kind == "lamp_on":
+        if kind == events.LAMP_ON:
             self.on_s, self.last, self.rest = rig_s, None, None
-        elif kind == "warmup_check":
+        elif kind == events.WARMUP_CHECK:
             self.last = {"t": rig_s, "lx": finite_float(event.get("illuminance_lx")),
                          "change": finite_float(event.get("change_rel")),
                          "stable_below": finite_float(event.get("stable_rel")),

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from rig import __version__
+from rig.core import events as kinds  # the kinds' names; `events` names a dataset's records here
 from rig.core.jsonfile import JsonFileError, parse_json
 from rig.data.campaign_runs import Run, runs_of
 from rig.data.dataset_format import DatasetError
@@ -20,9 +21,10 @@ from rig.data.dataset_reader import Dataset, complete_lines
 from rig.physics.budget import BUDGET_COLUMNS, NOT_STATED, campaign_budget, mark_not_stated, not_stated
 
 #: Events of events.jsonl that record a fault the run survived (docs/dataset.md), in the report's order.
-FAULT_EVENTS = ("retry", "reconnect", "reconnect_failed", "points_discarded", "device_errors", "warning",
-                "watchdog_expired_before_connect", "watchdog_expired", "watchdog_off", "watchdog_feed_failed",
-                "suspend_timeout", "closing_reading_failed", "switch_off_ramp_failed")
+FAULT_EVENTS = (kinds.RETRY, kinds.RECONNECT, kinds.RECONNECT_FAILED, kinds.POINTS_DISCARDED, kinds.DEVICE_ERRORS,
+                kinds.WARNING, kinds.WATCHDOG_EXPIRED_BEFORE_CONNECT, kinds.WATCHDOG_EXPIRED, kinds.WATCHDOG_OFF,
+                kinds.WATCHDOG_FEED_FAILED, kinds.SUSPEND_TIMEOUT, kinds.CLOSING_READING_FAILED,
+                kinds.SWITCH_OFF_RAMP_FAILED)
 SECONDS_PER_HOUR = 3600.0
 
 
@@ -204,11 +206,11 @@ def _pauses(events: list[dict]) -> list[Pause]:
     pauses: list[Pause] = []
     open_pause: dict | None = None
     for e in events:
-        if e.get("event") == "suspended":
+        if e.get("event") == kinds.SUSPENDED:
             if open_pause is not None:
                 pauses.append(Pause(str(open_pause.get("device", "")), str(open_pause.get("reason", "")), None))
             open_pause = e
-        elif e.get("event") == "resumed" and open_pause is not None:
+        elif e.get("event") == kinds.RESUMED and open_pause is not None:
             pauses.append(Pause(str(open_pause.get("device", "")), str(open_pause.get("reason", "")),
                                 _number(e.get("waited_s"))))
             open_pause = None
@@ -225,14 +227,14 @@ def _illuminance(runs: list[Run]) -> IlluminanceTrend:
 
 def conditions(events: list[dict], manifest: Mapping) -> Conditions:
     """The run's conditions from its events and manifest."""
-    warm = next((e for e in events if e.get("event") in ("warmup_stable", "warmup_not_stable")), None)
+    warm = next((e for e in events if e.get("event") in (kinds.WARMUP_STABLE, kinds.WARMUP_NOT_STABLE)), None)
     counted = count_events(events)
     runs = runs_of(manifest, events)
     total = max([t for t in (_number(manifest.get("rig_time_s")), runs[-1].end_s if runs else None) if t is not None],
                 default=None)                # an old dataset's manifest has its last run's rig time only
     return Conditions(
         warmup_s=_number(warm.get("warmup_s")) if warm else None,
-        warmup_stable=(warm.get("event") == "warmup_stable") if warm else None,
+        warmup_stable=(warm.get("event") == kinds.WARMUP_STABLE) if warm else None,
         warmup_change_rel=_number(warm.get("change_rel")) if warm else None,
         illuminance=_illuminance(runs), pauses=_pauses(events),
         faults={kind: counted.get(kind, 0) for kind in FAULT_EVENTS},
