@@ -222,7 +222,7 @@ def test_fixed_parameters_and_json_keys():
     assert r.params["kd"] == truth["kd"] and r.params["n"] == truth["n"]
     assert r.stderr["kd"] == 0.0 and r.fixed == ("kd", "n")
     data = r.to_json()
-    assert list(data) == ["model", "params", "stderr", "covariance", "metrics", "diagnostics"]
+    assert list(data) == ["model", "params", "stderr", "stderr_correlated", "covariance", "metrics", "diagnostics"]
     assert set(data["covariance"]) == {"k1", "k2", "k3", "k4"}                 # the free parameters only
     assert data["covariance"]["k1"]["k1"] == pytest.approx(r.stderr["k1"] ** 2, rel=1e-9)
     assert set(data["metrics"]) == {"rmse", "nrmse", "ncc"}

@@ -40,10 +40,12 @@ U_ALL = {"u_R_L_mcd_m2_lx", "u_Qd_mcd_m2_lx", "r_table.u_r_x1e4", "u_Q0", "u_S1"
     (0.0, 0.0, {"S1", "u_S1"}),                                                  # S1 = 0/0
     (0.1, 0.01, set()),                                                          # constant
     (1e300, 1e299, set()),                                                       # large, still finite
-    (1e306, 1e305, {"R_L_mcd_m2_lx", "Qd_mcd_m2_lx", "r_table.r_x1e4", "r_table.u_r_x1e4", "S1", "u_S1"}),
+    (1e306, 1e305, {"R_L_mcd_m2_lx", "Qd_mcd_m2_lx", "r_table.r_x1e4", "r_table.u_r_x1e4", "S1", "u_S1",
+                    "u_correlated.R_L_mcd_m2_lx", "u_correlated.Qd_mcd_m2_lx"}),
     (5e-324, 5e-324, set()),                                                     # denormals
     (0.1, math.inf, U_ALL),                                                      # an undetermined parameter's u
-    (math.nan, 0.1, {"R_L_mcd_m2_lx", "Qd_mcd_m2_lx", "r_table.r_x1e4", "Q0", "S1", "u_S1"}),
+    (math.nan, 0.1, {"R_L_mcd_m2_lx", "Qd_mcd_m2_lx", "r_table.r_x1e4", "Q0", "S1", "u_S1",
+                     "u_correlated.R_L_mcd_m2_lx", "u_correlated.Qd_mcd_m2_lx", "u_correlated.Q0"}),
 ])
 def test_degenerate_predictions_give_a_valid_road_json(tmp_path, recwarn, f, u, undefined):
     out = tmp_path / "road.json"
