@@ -53,7 +53,7 @@ def test_the_bars_count_draws_by_the_smallest_budget_that_reaches_the_table():
     assert "reached by adaptive ×0.25 in 0.200×" in verdict(group)
     assert "NOT reached" in verdict([r for r in results if r.draw == "lambert#2"])
     text = distribution(results)
-    assert "reached by ≤ 0.25×: 1/3 draws (33%; bar ≥ 80%: NOT met)" in text
+    assert "reached by ≤ 0.25×: 1/3 draws with an adaptive run (33%; bar ≥ 80%: NOT met)" in text
     assert "by ≤ 0.5×: 2/3 (NOT every draw)" in text
     assert "0.20, 0.45, —" in text
 
