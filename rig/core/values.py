@@ -164,3 +164,6 @@ class PointCapture:
     u_lobe_cd_m2: float = 0.0
     lobe_width_rel: float = 0.0
     lobe_slope_rel: float = 0.0
+    #: The ROI's block pattern (rig.physics.roi.RoiStats.pattern): how the point's texture u splits into the static
+    #: grain shared with other views and the rest (rig.physics.static_texture); None where there is none.
+    roi_pattern: np.ndarray | None = None

@@ -49,6 +49,10 @@ class RoiStats:
     lobe: LobeFit = NO_LOBE  # the fit of the block means' curvature (rig.physics.footprint)
     u_lobe: float = 0.0    # standard uncertainty of the lobe correction, or the bias left uncorrected (below)
     corrected: bool = False  # the mean is corrected to the ROI centre for the lobe (the fit resolves it)
+    #: The block means about their plane (about the lobe where corrected) over their mean, (rows, cols): what the
+    #: texture u is the spread of, kept so that views of the same sample area can be compared (rig.physics.
+    #: static_texture). None for a black ROI.
+    pattern: np.ndarray | None = None
 
     @property
     def u_texture(self) -> float:
@@ -149,15 +153,18 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
     if not lobe.resolved or lobe.trend is None:
         # On a flank (the plane is clear) the lobe's curvature biases the mean even where the fit cannot
         # resolve it well enough to correct: the bias it estimates is left in, and counted as its u.
-        sloped = _about_plane(means)[2] > SLOPE_F
+        dev, _, f_plane = _about_plane(means)
         return RoiStats(mean=mean, u_mean=u_mean_of_blocks(means), u_mean_noise=mean_noise(variance),
                         std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe,
-                        u_lobe=abs(lobe.bias_rel * mean) if sloped else 0.0)
+                        u_lobe=abs(lobe.bias_rel * mean) if f_plane > SLOPE_F else 0.0,
+                        pattern=dev / mean if mean > 0 else None)
     # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
     scale = 1.0 / (1.0 + lobe.bias_rel)
-    return RoiStats(mean=mean * scale, u_mean=u_mean_of_blocks(means / lobe.trend) * scale,
+    flattened = means / lobe.trend
+    return RoiStats(mean=mean * scale, u_mean=u_mean_of_blocks(flattened) * scale,
                     u_mean_noise=mean_noise(variance) * scale, std=float(image.std(ddof=1)), n=n,
-                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale, corrected=True)
+                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale, corrected=True,
+                    pattern=_about_plane(flattened)[0] / float(flattened.mean()))
 
 
 def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:

@@ -104,3 +104,17 @@ def test_a_curved_flank_too_noisy_to_correct_keeps_its_bias_as_u():
         z_without.append(error / 1e-4)
     assert len(z_with) > 30 and len(flat_u_lobe) > 30 and max(flat_u_lobe) == 0.0
     assert np.mean(np.abs(z_with) <= 2) > 0.7 > 0.0 == np.mean(np.abs(z_without) <= 2)
+
+
+def test_the_block_pattern_is_the_texture_about_the_plane_over_the_mean():
+    """What the texture u is the spread of, kept for the static/glint split (issue 34): a slope adds nothing, a
+    change of unit nothing, and a grain pattern shows block for block."""
+    rng = np.random.default_rng(5)
+    grain = np.kron(rng.standard_normal((7, 7)), np.ones((10, 10)))
+    y, x = np.mgrid[0:70, 0:70]
+    plain = roi_statistics(100 + grain, np.zeros((70, 70))).pattern
+    sloped = roi_statistics(3 * (100 + grain + 0.05 * (x - 34.5) - 0.02 * (y - 34.5)), np.zeros((70, 70))).pattern
+    assert plain is not None and sloped is not None and plain.shape == (7, 7)
+    assert np.allclose(sloped, plain, atol=1e-12)
+    assert np.corrcoef(plain.ravel(), block_means(grain).ravel())[0, 1] > 0.95
+    assert roi_statistics(np.zeros((70, 70)), np.zeros((70, 70))).pattern is None
