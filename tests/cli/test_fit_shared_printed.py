@@ -25,4 +25,4 @@ def test_the_report_and_the_comparison_show_the_shared_part():
 
 def test_nothing_shared_prints_nothing():
     r = lambert_fit(0.0)
-    assert "shared" not in format_report(r) and "shared" not in format_comparison([r])
+    assert "shared ±" not in format_report(r) and "shared ±" not in format_comparison([r])
