@@ -9,7 +9,7 @@ gets: the last reading alone, or one interpolated between the readings that brac
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -18,6 +18,7 @@ from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
 from rig.physics.budget import lobe_angle_u_rel, point_budget, split_u
 from rig.physics.illuminance import IlluminanceEstimate, brdf_from_luminance, interpolate
+from rig.physics.static_texture import StaticTexture, grid_map, half_vector, usable
 from rig.planning.points import PlannedPoint
 
 
@@ -47,6 +48,9 @@ class RowConstants:
     #: The part of angle_u_deg that differs from one position to the next (geometry.readback_u_deg); the rest,
     #: the axes' fixed zero errors, is shared by every point (u_rel_angle_zero). None: all of it differs.
     readback_u_deg: float | None = None
+    #: The run's estimate of the sample's static grain in the ROI texture, from the points whose rows were built
+    #: so far (each row is final when written: it carries the split known then; rig.physics.static_texture).
+    texture: StaticTexture = field(default_factory=StaticTexture, compare=False)
 
 
 def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float,
@@ -56,6 +60,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     `interpolated`: that E⊥ was interpolated between bracketing readings (a column, not a flag: it is
     the routine correction of `illuminance.correction: interpolate`, not a condition worth a look)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
+    u_texture, u_static = texture_split(m, constants.texture)
     u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
     u_luminance = float(np.hypot(cap.u_luminance_cd_m2, u_angle_lobe * cap.luminance_cd_m2))
     res = brdf_from_luminance(cap.luminance_cd_m2, u_luminance, e_perp_lx, u_e_perp_lx,
@@ -63,14 +68,14 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
     budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=cap.u_luminance_cd_m2,
                           u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
-                          u_texture_cd_m2=cap.u_texture_cd_m2, u_lobe_cd_m2=cap.u_lobe_cd_m2,
+                          u_texture_cd_m2=u_texture, u_lobe_cd_m2=cap.u_lobe_cd_m2,
                           lobe_angle_u_rel=u_angle_lobe,
                           calibration_u_rel=constants.calibration_u_rel,
                           attenuation_u_rel=cap.u_rel_attenuation,
                           e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,
                           theta_i_deg=theta_i, angle_u_deg=constants.angle_u_deg,
                           readback_u_deg=constants.readback_u_deg,
-                          u_meter_cal_lx=meter_cal_u_rel * e_perp_lx)
+                          u_meter_cal_lx=meter_cal_u_rel * e_perp_lx, u_texture_static_cd_m2=u_static)
     return {
         "point_id": m.point.point_id, "series": m.point.series,
         "theta_i_deg": theta_i, "phi_i_deg": float(m.angles.phi_i_deg),
@@ -90,6 +95,27 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
         "illuminance_interpolated": int(interpolated),
         **split_u(budget, float(res.brdf_per_sr), float(res.u_brdf_per_sr)),
     }
+
+
+def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float]:
+    """The point's texture u (cd/m²) without the static grain's part common to the campaign, and that part.
+
+    The point's pattern joins the run's estimate first. Of the ROI's block variance (noise and texture,
+    u_noise² + u_texture²) the static grain makes `texture.share`, at most the whole texture; of that the part
+    common to the campaign is the point's `common_fraction`, which leaves the point's own u. Before the estimate
+    has its minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
+    cap, grid = m.capture, grid_map(m.motors_deg)
+    if cap.roi_pattern is None or not usable(grid):
+        return cap.u_texture_cd_m2, 0.0
+    texture.observe(m.point.point_id, cap.roi_pattern, grid, half_vector(
+        float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
+        float(m.angles.phi_o_deg)))
+    share = texture.share
+    if share <= 0:
+        return cap.u_texture_cd_m2, 0.0
+    static_sq = min(share * (cap.u_noise_cd_m2 ** 2 + cap.u_texture_cd_m2 ** 2), cap.u_texture_cd_m2 ** 2)
+    common_sq = texture.common_fraction(m.point.point_id, grid) * static_sq
+    return float(np.sqrt(cap.u_texture_cd_m2 ** 2 - common_sq)), float(np.sqrt(common_sq))
 
 
 def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:

@@ -352,14 +352,16 @@ def point_u(dataset: Dataset, keep: np.ndarray) -> tuple[np.ndarray, dict[str, n
     """The u that weights a fit of the `keep` rows, and the shared errors to propagate (module docstring).
 
     A dataset that gives the point-to-point part on every row is weighted by it, and its calibrations are
-    the shared sources: the camera's and the meter's together (every point), the axes' zero errors
+    the shared sources: the camera's and the meter's together with the static grain's common part (every
+    point; rig.physics.static_texture), the axes' zero errors
     (every point, through tan θi), each filter position's transmission (its points). Otherwise (an import,
     a dataset written before the split) the whole `u_brdf_per_sr` weights it, with nothing apart."""
     cols = dataset.columns
     if "u_brdf_point_per_sr" not in cols or not np.all(usable_u(dataset["u_brdf_point_per_sr"][keep])):
         return dataset["u_brdf_per_sr"][keep], {}
-    shared = {"calibration": np.hypot(*(np.nan_to_num(dataset[c][keep]) if c in cols else np.zeros(keep.sum())
-                                        for c in ("u_rel_calibration", "u_rel_meter_calibration")))}
+    shared = {"calibration": np.sqrt(sum(np.nan_to_num(dataset[c][keep]) ** 2 if c in cols else np.zeros(keep.sum())
+                                         for c in ("u_rel_calibration", "u_rel_meter_calibration",
+                                                   "u_rel_texture_static")))}
     if "u_rel_angle_zero" in cols:
         shared["axis zeros"] = np.nan_to_num(dataset["u_rel_angle_zero"][keep])
     if "filter_position" in cols and "u_rel_attenuation" in cols:

@@ -15,9 +15,13 @@ import numpy as np
 
 from rig.physics.budget import BUDGET_COLUMNS, SPLIT_COLUMNS
 
+#: The budget component added after the split columns (rig.physics.static_texture).
+TEXTURE_STATIC = "u_rel_texture_static"
+
 FORMAT = "rig-brdf-dataset"
 #: 1.1: empty cells for values that do not apply (NaN when read); column illuminance_interpolated.
-FORMAT_VERSION = "1.1"
+#: 1.2: column u_rel_texture_static (the static grain's shared part of the ROI texture), last.
+FORMAT_VERSION = "1.2"
 #: The manifest's pointer to the angle conventions: a document that ships with rig.
 CONVENTIONS = "docs/geometry.md of rig (angle conventions, degrees, phi in [0, 360))"
 
@@ -30,10 +34,12 @@ CONTRACT_COLUMNS = (
     "exposures_s", "saturated_fraction", "flags", "time_utc", "rig_time_s",
 )
 #: Columns after the contract's: capture details, the relative uncertainty budget (k = 1, rig/physics/budget.py)
-#: and whether E⊥ was interpolated between bracketing readings (1) or is the last reading (0).
+#: and whether E⊥ was interpolated between bracketing readings (1) or is the last reading (0); the budget's
+#: static-texture component last (added in 1.2).
 PROJECT_COLUMNS = ("u_illuminance_normal_lx", "roi_std_cd_m2", "n_frames", "capture_time_s", "filter_position",
-                   "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg", *BUDGET_COLUMNS,
-                   "illuminance_interpolated", *SPLIT_COLUMNS)
+                   "filter_transmission", "footprint_deg", "lobe_bias_rel", "lobe_width_deg",
+                   *(c for c in BUDGET_COLUMNS if c != TEXTURE_STATIC), "illuminance_interpolated", *SPLIT_COLUMNS,
+                   TEXTURE_STATIC)
 #: brdf.csv as rig writes it.
 BRDF_COLUMNS = CONTRACT_COLUMNS + PROJECT_COLUMNS
 SKIPPED_COLUMNS = ("point_id", "theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg", "reason")

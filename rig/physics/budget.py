@@ -35,11 +35,15 @@ BUDGET_COLUMNS = {
     "u_rel_drift": "lamp drift between E⊥ readings",
     "u_rel_angle": "incidence angle, through tan θi: the axes' read-back, which differs from point to point",
     "u_rel_angle_zero": "incidence angle, through tan θi: the axes' fixed zero errors, shared by every point",
+    "u_rel_texture_static": "ROI texture: the sample's static grain, seen alike from every view of the same area, "
+                            "its part common to the campaign (rig.physics.static_texture)",
 }
 #: Components that are one error for every point they serve: a calibration certificate's (camera, meter
 #: head) for the whole campaign, a filter's transmission for every point taken through that filter, the axes'
-#: zero errors for every point (through tan θi, so not one relative shift but one error δ).
-CORRELATED_COMPONENTS = ("u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero")
+#: zero errors for every point (through tan θi, so not one relative shift but one error δ), the sample's static
+#: grain for every view of the same area (the ROI's texture: rig.physics.static_texture).
+CORRELATED_COMPONENTS = ("u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero",
+                         "u_rel_texture_static")
 #: The two parts of u_brdf_per_sr, in brdf.csv after the budget (absolute, 1/sr).
 SPLIT_COLUMNS = {
     "u_brdf_point_per_sr": "point-to-point part of u_brdf_per_sr: every component but the correlated ones",
@@ -84,7 +88,7 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
                  attenuation_u_rel: float,
                  e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float, theta_i_deg: float,
                  angle_u_deg: float, u_meter_cal_lx: float = 0.0,
-                 readback_u_deg: float | None = None) -> dict[str, float]:
+                 readback_u_deg: float | None = None, u_texture_static_cd_m2: float = 0.0) -> dict[str, float]:
     """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
 
     The camera parts are relative to the luminance, or to its uncertainty where the ROI is
@@ -92,7 +96,8 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
     taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift and the meter's
     calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once. The incidence angle's u
     (`angle_u_deg`) splits into its read-back part (`readback_u_deg`, None: all of it) and the fixed zero
-    errors' rest.
+    errors' rest. `u_texture_static_cd_m2`: the static grain's part of the texture common to the campaign
+    (rig.physics.static_texture), apart from `u_texture_cd_m2`, the rest.
     """
     readback = angle_u_deg if readback_u_deg is None else min(readback_u_deg, angle_u_deg)
     tan_i = math.tan(math.radians(min(theta_i_deg, 89.9999)))
@@ -110,6 +115,7 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
         "u_rel_drift": u_drift_lx / e_perp_lx,
         "u_rel_angle": tan_i * math.radians(readback),
         "u_rel_angle_zero": tan_i * math.radians(math.sqrt(angle_u_deg ** 2 - readback ** 2)),
+        "u_rel_texture_static": u_texture_static_cd_m2 / lum,
     }
 
 

@@ -1,5 +1,6 @@
 """A row's uncertainty in two parts (issue 34): the calibrations shared by every point, and the rest."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,6 +12,7 @@ from rig.core.values import Window
 from rig.physics.budget import CORRELATED_COMPONENTS, lobe_view_u_deg
 from rig.physics.geometry import BrdfAngles
 from rig.physics.illuminance import IlluminanceEstimate
+from rig.physics.static_texture import MIN_PAIRS, StaticTexture
 from rig.planning.points import PlannedPoint
 
 L = 100.0
@@ -72,3 +74,41 @@ def test_the_axes_zero_errors_are_shared_and_their_read_back_is_not():
     assert row["u_brdf_correlated_per_sr"] / row["brdf_per_sr"] == pytest.approx(corr, rel=1e-9)
     before = latest_row(measurement(5.0), reading(1000.0, 0.0), CONSTANTS)       # no read-back: all of it differs
     assert before["u_rel_angle_zero"] == 0.0 and before["u_brdf_per_sr"] == pytest.approx(row["u_brdf_per_sr"])
+
+
+def textured(k: int, static: np.ndarray, rng: np.random.Generator) -> Measurement:
+    """Point k of a series that sees the same sample area (the same axes' positions, θo 10°: one block grid) with
+    its half vector 4° further each time: a 7 × 7 block pattern of the static grain plus glints of the same power."""
+    m = measurement(5.0 + k)
+    pattern = static + 0.01 * rng.standard_normal((7, 7))
+    angles = BrdfAngles(np.float64(8.0 * k), np.float64(0.0), np.float64(10.0), np.float64(180.0))
+    point = dataclasses.replace(m.point, point_id=f"s0-p{k}")
+    return dataclasses.replace(m, point=point, angles=angles, motors_deg=(-30.0, 0.0, 50.0, -90.0),
+                               capture=dataclasses.replace(m.capture, filter_position=0, transmission=1.0,
+                                                           u_rel_attenuation=0.0, roi_pattern=pattern))
+
+
+def test_the_static_grain_common_to_the_views_moves_to_the_correlated_part():
+    """Half the block variance is a grain every view of the area shares: once the run has MIN_PAIRS pairs of
+    such views, each row moves that half of its ROI variance (noise and texture) out of the point's own u into
+    u_rel_texture_static (correlated); u_brdf_per_sr is unchanged. Before that, nothing moves."""
+    rng = np.random.default_rng(3)
+    static = 0.01 * rng.standard_normal((7, 7))
+    constants = dataclasses.replace(CONSTANTS, texture=StaticTexture())     # a run of its own
+    points = [textured(k, static, rng) for k in range(12)]
+    rows = [latest_row(m, reading(1000.0, 0.0), constants) for m in points]
+    without = dataclasses.replace(points[-1], capture=dataclasses.replace(points[-1].capture, roi_pattern=None))
+    plain = latest_row(without, reading(1000.0, 0.0), constants)
+    assert rows[0]["u_rel_texture_static"] == 0.0 and constants.texture.pairs >= MIN_PAIRS
+    last = rows[-1]
+    assert last["u_brdf_per_sr"] == pytest.approx(plain["u_brdf_per_sr"], rel=1e-12)
+    block_sq = 0.003 ** 2                                           # u_noise² + u_texture² of `measurement`
+    assert last["u_rel_texture_static"] ** 2 == pytest.approx(0.5 * block_sq, rel=0.25)
+    assert last["u_rel_texture"] ** 2 + last["u_rel_texture_static"] ** 2 == pytest.approx(
+        plain["u_rel_texture"] ** 2, rel=1e-9)
+    f = last["brdf_per_sr"]
+    assert (last["u_brdf_correlated_per_sr"] / f) ** 2 == pytest.approx(
+        (plain["u_brdf_correlated_per_sr"] / f) ** 2 + last["u_rel_texture_static"] ** 2, rel=1e-9)
+    assert last["u_brdf_point_per_sr"] < plain["u_brdf_point_per_sr"]
+    assert math.hypot(last["u_brdf_point_per_sr"], last["u_brdf_correlated_per_sr"]) == pytest.approx(
+        last["u_brdf_per_sr"], rel=1e-12)

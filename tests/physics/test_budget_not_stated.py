@@ -37,4 +37,5 @@ def test_dataset_json_and_the_report_say_so(tmp_path):
 
 def test_the_budget_says_which_components_are_shared():
     shared = {b["component"] for b in table() if b["correlated"]}
-    assert shared == {"u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero"}
+    assert shared == {"u_rel_calibration", "u_rel_meter_calibration", "u_rel_attenuation", "u_rel_angle_zero",
+                      "u_rel_texture_static"}

@@ -1,0 +1,157 @@
+"""The sample's static grain in the ROI texture: how much of it there is, and how much every point shares (issue 34).
+
+The ROI's texture u (rig.physics.roi: the spread of its block means about their plane) holds two things. Glints
+(beads, aggregate facets) light up for some directions and not others: they change from view to view and are a
+point's own error. The static grain (the reflectance pattern of the sample's surface) is the same in every view of
+the same area, and the ROI looks at the sample's centre from every view: two views' ROI means share its error as
+far as their footprints overlap, so most of it is one offset of the whole campaign, not a scatter between points.
+
+Its share is estimated from the data: each point keeps its ROI block pattern (`roi_pattern`: block means about
+their plane over their mean). Two views whose block grids fall on the same sample area (no ROI corner more than
+SAME_AREA_BLOCKS apart: `grid_map`, from the axes' positions) but whose half vectors are more than GLINT_APART_DEG
+apart (their glints differ) share exactly the static part of their patterns, so over such pairs
+Σ pᵢ·pⱼ / Σ ½(|pᵢ|² + |pⱼ|²) estimates the static share of the block variance (`StaticTexture.share`). Of a
+point's static variance, the part common to the campaign is the mean correlation of its ROI mean's static error
+with the other views', the overlap of their footprints on the sample (`StaticTexture.common_fraction`).
+
+On the simulated rig (docs/uncertainty.md) the pair estimate gives 0.20–0.27 where the static factor, rendered
+apart, makes 0.23–0.28 of the block patterns' power, and the footprint overlap predicts the correlation of two
+views' static errors (0.30, 0.46, 0.72, 0.92 measured over 30 seeds for 0.3, 0.5, 0.7, 0.9 predicted).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rig.physics.geometry import camera_frame, sample_frame, sph_to_vec
+
+#: Two views' block grids fall on the same sample area when no ROI corner lies farther apart than this (blocks).
+SAME_AREA_BLOCKS = 0.3
+#: Two views' glints are unrelated when their half vectors are farther apart than this (degrees): the simulated
+#: sample's glints decorrelate within 4° of the half vector; a real one's is not known, so the margin is wide.
+GLINT_APART_DEG = 5.0
+#: Pairs of such views needed before the share is estimated; with fewer it is 0 (the texture stays point-to-point).
+MIN_PAIRS = 20
+#: Points per side of the grid that measures the overlap of two footprints.
+OVERLAP_GRID = 16
+#: A view whose footprint is longer than this many times the normal view's (θo beyond about 87°) sees the sample
+#: nearly edge-on: its block grid is not compared, and its static grain stays its own.
+MAX_STRETCH = 20.0
+#: Views a footprint's mean overlap is taken over at most (evenly spread over those seen): a mean, not a sum.
+MAX_VIEWS = 400
+
+
+def usable(grid: np.ndarray) -> bool:
+    """Whether a `grid_map` is a footprint on the sample: finite, not edge-on (MAX_STRETCH)."""
+    return bool(np.all(np.isfinite(grid)) and 0 < abs(np.linalg.det(grid)) <= MAX_STRETCH)
+
+
+def grid_map(motors_deg: tuple[float, float, float, float]) -> np.ndarray:
+    """The ROI's block grid on the sample: the 2 × 2 map from an offset (columns, rows) in the image to sample
+    (x, y), in units of the grid's size when the camera looks along the normal. The image offset moves the ray
+    by sensor x and −sensor y (rig.physics.optics.ray_directions); it meets the sample plane along the view
+    axis; the camera's distance and focal length only scale it, alike for every view."""
+    alpha, beta, a, b = np.radians(np.asarray(motors_deg, float))
+    frame, camera = sample_frame(alpha, beta), camera_frame(a, b)
+    normal, axis = frame[:, 2], camera[:, 2]
+    image_axes = np.stack([camera[:, 0], -camera[:, 1]], axis=1)              # GCS, (3, 2)
+    on_plane = image_axes - np.outer(axis, normal @ image_axes) / (axis @ normal)
+    return frame[:, :2].T @ on_plane
+
+
+def half_vector(theta_i_deg: float, phi_i_deg: float, theta_o_deg: float, phi_o_deg: float) -> np.ndarray:
+    """Unit half vector of a view (SCS)."""
+    h = sph_to_vec(np.radians([theta_i_deg, theta_o_deg]), np.radians([phi_i_deg, phi_o_deg])).sum(axis=0)
+    return h / np.linalg.norm(h)
+
+
+class StaticTexture:
+    """The run's estimate, from the points seen so far (`observe`); one per run (rig.acquisition.rows).
+
+    Each point's pattern is compared with every earlier one's once, and its footprint's overlap with theirs is
+    taken once: about 1.5 ms per point over a 2000-point campaign."""
+
+    def __init__(self) -> None:
+        self._patterns = np.empty((0, 0))
+        self._inverse = np.empty((0, 2, 2))          # each view's sample → block grid map
+        self._areas = np.empty(0)                    # |det| of its grid map: its footprint's area
+        self._halves = np.empty((0, 3))
+        self._maps = np.empty((0, 2, 2))
+        self._seen: set[str] = set()
+        self._common: dict[str, float] = {}
+        self._shape: tuple[int, int] | None = None
+        self._cross = 0.0
+        self._power = 0.0
+        self.n = 0
+        self.pairs = 0
+
+    def observe(self, point_id: str, pattern: np.ndarray, grid: np.ndarray, half: np.ndarray) -> None:
+        """Add a point's ROI pattern (rows × columns of blocks), its `grid_map` and `half_vector`. A point seen
+        before (its row is built again once E⊥ brackets it) is not added twice; patterns of another grid than the
+        first, and edge-on views (`usable`), are left out."""
+        if point_id in self._seen or (self._shape is not None and pattern.shape != self._shape) or not usable(grid):
+            return
+        self._seen.add(point_id)
+        if self._shape is None:
+            self._shape = (int(pattern.shape[0]), int(pattern.shape[1]))
+            self._patterns = np.empty((0, pattern.size))
+        p, n = pattern.ravel().astype(float), self.n
+        if n:
+            d = self._maps[:n] - grid                                       # corner (±cols/2, ±rows/2) moves by d·c
+            rows, cols = self._shape
+            dx, dy = d[:, :, 0] * cols / 2.0, d[:, :, 1] * rows / 2.0
+            apart = np.sqrt(np.maximum(np.sum((dx + dy) ** 2, axis=1), np.sum((dx - dy) ** 2, axis=1)))
+            glints = np.degrees(np.arccos(np.clip(self._halves[:n] @ half, -1.0, 1.0)))
+            pair = (apart < SAME_AREA_BLOCKS) & (glints > GLINT_APART_DEG)
+            others = self._patterns[:n][pair]
+            self._cross += float(np.sum(others @ p))
+            self._power += float(0.5 * (np.sum(others ** 2) + np.sum(pair) * (p @ p)))
+            self.pairs += int(np.sum(pair))
+        if n == len(self._areas):                    # room for twice as many
+            grow = max(2 * n, 64)
+            self._patterns = _resized(self._patterns, grow)
+            self._inverse, self._maps = _resized(self._inverse, grow), _resized(self._maps, grow)
+            self._areas, self._halves = _resized(self._areas, grow), _resized(self._halves, grow)
+        self._patterns[n], self._maps[n], self._inverse[n] = p, grid, np.linalg.inv(grid)
+        self._areas[n], self._halves[n] = abs(np.linalg.det(grid)), half
+        self.n += 1
+
+    @property
+    def share(self) -> float:
+        """The static grain's share of the ROI block variance, 0 until MIN_PAIRS pairs of views gave it."""
+        if self.pairs < MIN_PAIRS or self._power <= 0:
+            return 0.0
+        return float(np.clip(self._cross / self._power, 0.0, 1.0))
+
+    def common_fraction(self, point_id: str, grid: np.ndarray) -> float:
+        """Mean correlation of a view's static error (its ROI mean over the grain) with the views seen so far,
+        itself included: the overlap of their footprints on the sample over the geometric mean of their areas
+        (a grain much finer than the footprint). Taken once per point (its row is built again once E⊥ brackets
+        it), over at most MAX_VIEWS views spread over those seen."""
+        if point_id not in self._common:
+            self._common[point_id] = self._overlap(grid)
+        return self._common[point_id]
+
+    def _overlap(self, grid: np.ndarray) -> float:
+        n = self.n
+        if not n:
+            return 1.0
+        rows, cols = self._shape or (1, 1)
+        steps = (np.arange(OVERLAP_GRID) + 0.5) / OVERLAP_GRID - 0.5
+        gx, gy = np.meshgrid(steps * cols, steps * rows)
+        sx = grid[0, 0] * gx.ravel() + grid[0, 1] * gy.ravel()             # this view's footprint on the sample
+        sy = grid[1, 0] * gx.ravel() + grid[1, 1] * gy.ravel()
+        views = slice(0, n, -(-n // MAX_VIEWS))
+        inv, areas = self._inverse[views], self._areas[views]
+        lx = inv[:, 0, 0, None] * sx + inv[:, 0, 1, None] * sy               # in each view's own grid
+        ly = inv[:, 1, 0, None] * sx + inv[:, 1, 1, None] * sy
+        inside = ((np.abs(lx) <= cols / 2.0) & (np.abs(ly) <= rows / 2.0)).mean(axis=1)
+        rho = np.minimum(inside * np.sqrt(abs(np.linalg.det(grid)) / areas), 1.0)
+        return float(np.clip(np.mean(rho), 0.0, 1.0))
+
+
+def _resized(a: np.ndarray, rows: int) -> np.ndarray:
+    """`a` with room for `rows` entries along its first axis (its entries kept)."""
+    out = np.empty((rows, *a.shape[1:]))
+    out[:len(a)] = a
+    return out
