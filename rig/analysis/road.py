@@ -186,10 +186,14 @@ def classes_within(value: float, u: float, limits: Mapping[str, float], k: float
 
 
 def shared_calibration_u_rel(dataset: Any) -> float:
-    """The relative u every point of a dataset shares: its camera and meter calibrations (median over rows of
-    u_rel_calibration ⊕ u_rel_meter_calibration; 0 for a dataset without them, e.g. an import)."""
+    """The relative u every point of a dataset shares: its camera and meter calibrations and the static grain's
+    common part (median over rows of u_rel_calibration ⊕ u_rel_meter_calibration ⊕ u_rel_texture_static, the
+    last 0 where not given; 0 for a dataset without the calibrations, e.g. an import)."""
     cols = [dataset[c] for c in ("u_rel_calibration", "u_rel_meter_calibration") if c in dataset.columns]
-    return float(np.nanmedian(np.hypot(*cols))) if len(cols) == 2 and len(cols[0]) else 0.0
+    if len(cols) != 2 or not len(cols[0]):
+        return 0.0
+    static = np.nan_to_num(dataset["u_rel_texture_static"]) if "u_rel_texture_static" in dataset.columns else 0.0
+    return float(np.nanmedian(np.sqrt(cols[0] ** 2 + cols[1] ** 2 + static ** 2)))
 
 
 def road_quantities(predictor: Predictor, *, phi_o_deg: float = 0.0, n: int = 96,

@@ -35,3 +35,9 @@ def test_shared_calibration_shifts_every_quantity_by_its_relative_u():
 
 def test_a_dataset_without_the_calibration_columns_shares_nothing():
     assert road.shared_calibration_u_rel(Columns(u_rel_noise=np.ones(3))) == 0.0
+
+
+def test_the_static_grains_common_part_is_shared_too():
+    ds = Columns(u_rel_calibration=np.full(5, 0.02), u_rel_meter_calibration=np.full(5, 0.015),
+                 u_rel_texture_static=np.array([0.01, 0.01, 0.01, np.nan, 0.01]))
+    assert road.shared_calibration_u_rel(ds) == pytest.approx(np.sqrt(0.02 ** 2 + 0.015 ** 2 + 0.01 ** 2), rel=1e-12)
