@@ -1,9 +1,13 @@
-"""brdf.csv rows from measurements and E⊥ (pure: no device, no file).
+"""brdf.csv rows from measurements and E⊥ (no device, no file).
 
 A point is measured before the E⊥ reading that closes its interval is taken, so the
 engine keeps a `Measurement` and turns it into a row once it knows which E⊥ the point
 gets: the last reading alone, or one interpolated between the readings that bracket it
 (column `illuminance_interpolated` = 1).
+
+The one state a row depends on besides its measurement is the run's estimate of the sample's static
+grain (`RowConstants.texture`): each measurement joins it when its row is first built, and its row
+carries the split of the ROI texture known then (rig.physics.static_texture, docs/uncertainty.md).
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ class Measurement:
 
 @dataclass(frozen=True)
 class RowConstants:
-    """What a row needs besides the measurement and its E⊥: fixed for a run."""
+    """What a row needs besides the measurement and its E⊥: fixed for a run, but for the texture estimate."""
 
     angle_u_deg: float            # standard uncertainty of the incidence angle
     lobe_view_u_deg: float        # ... of the view direction relative to a specular lobe (budget.lobe_view_u_deg)
