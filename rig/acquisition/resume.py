@@ -262,7 +262,7 @@ def prepare_resume(folder: str | Path, *, force: bool = False, rig_file: str | P
         if unknown and not force:
             raise ResumeError(f"{folder}: {len(unknown)} measured points are not in the campaign's plan "
                               f"(e.g. {sorted(unknown)[0]}); use --force to resume anyway")
-        writer.space_needed_bytes = folder_size(folder) + checked.space_needed_bytes
+        writer.space_needed_bytes = folder_size(folder) + (checked.space_needed_bytes or 0)   # set by preflight
         done = _log_resume(writer, run, recovered, force=force, rig_file=rig_file)
         return replace(checked, space_needed_bytes=writer.space_needed_bytes, writer=writer, done_rows=done)
     except BaseException:
