@@ -21,8 +21,10 @@ def unstated_u(data: dict[str, Any]) -> tuple[str, ...]:
     """Key paths of the calibration u a rig file's data (before validation) does not state, with those it
     already lists (a rig configuration read back from a manifest): the camera's luminance coefficient
     (unless a calibration file gives it), the meter head's factor, each attenuating filter's transmission
-    (an open position, transmission 1, has nothing to calibrate)."""
-    missing = list(data.get("uncertainty_not_stated", ()))
+    (an open position, transmission 1, has nothing to calibrate). Parts of the wrong shape are passed over:
+    the validation that follows names them."""
+    listed = data.get("uncertainty_not_stated", ())
+    missing = [key for key in listed if isinstance(key, str)] if isinstance(listed, (list, tuple)) else []
     camera, meter = data.get("camera", {}), data.get("meter", {})
     if not states(camera, "calibration_u_rel") and not states(camera, "calibration_file"):
         missing.append("camera.calibration_u_rel")
@@ -30,8 +32,13 @@ def unstated_u(data: dict[str, Any]) -> tuple[str, ...]:
         missing.append("meter.calibration_u_rel")
     attenuator = data.get("attenuator")
     filters = attenuator.get("filters", []) if isinstance(attenuator, dict) else getattr(attenuator, "filters", [])
-    for f in filters:
-        value = f if isinstance(f, dict) else f.model_dump(exclude_unset=True)
+    for f in filters if isinstance(filters, (list, tuple)) else ():
+        if isinstance(f, dict):
+            value = f
+        elif hasattr(f, "model_dump"):
+            value = f.model_dump(exclude_unset=True)
+        else:
+            continue
         if not states(f, "u_rel") and value.get("transmission", 1.0) != 1.0:
             missing.append(f"attenuator.filters[position {value.get('position')}].u_rel")
     return tuple(dict.fromkeys(missing))
