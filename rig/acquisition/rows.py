@@ -104,21 +104,19 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
 def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float]:
     """The point's texture u (cd/m²) without the static grain's part common to the campaign, and that part.
 
-    The point's pattern joins the run's estimate first. Of the ROI's block variance (noise and texture,
-    u_noise² + u_texture²) the static grain makes `texture.share`, at most the whole texture; of that the part
-    common to the campaign is the point's `common_fraction`, which leaves the point's own u. Before the estimate
-    has its minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
+    The point's pattern joins the run's estimate first, with its block variance (u_noise² + u_texture²,
+    relative); the part the campaign's mean static error takes with it (`common_variance`), at most the whole
+    texture, leaves the point's own u. Before the estimate has its minimum of view pairs (or without a pattern,
+    or for an edge-on view) nothing moves."""
     cap, grid = m.capture, grid_map(m.motors_deg)
-    if cap.roi_pattern is None or not usable(grid):
+    if cap.roi_pattern is None or not usable(grid) or cap.luminance_cd_m2 <= 0:
         return cap.u_texture_cd_m2, 0.0
+    block_rel_sq = (cap.u_noise_cd_m2 ** 2 + cap.u_texture_cd_m2 ** 2) / cap.luminance_cd_m2 ** 2
     texture.observe(m.point.point_id, cap.roi_pattern, grid, half_vector(
         float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
-        float(m.angles.phi_o_deg)))
-    share = texture.share
-    if share <= 0:
-        return cap.u_texture_cd_m2, 0.0
-    static_sq = min(share * (cap.u_noise_cd_m2 ** 2 + cap.u_texture_cd_m2 ** 2), cap.u_texture_cd_m2 ** 2)
-    common_sq = texture.common_fraction(m.point.point_id, grid) * static_sq
+        float(m.angles.phi_o_deg)), block_rel_sq)
+    common_sq = min(texture.common_variance(m.point.point_id, grid) * cap.luminance_cd_m2 ** 2,
+                    cap.u_texture_cd_m2 ** 2)
     return float(np.sqrt(cap.u_texture_cd_m2 ** 2 - common_sq)), float(np.sqrt(common_sq))
 
 

@@ -11,8 +11,8 @@ their plane over their mean). Two views whose block grids fall on the same sampl
 SAME_AREA_BLOCKS apart: `grid_map`, from the axes' positions) but whose half vectors are more than GLINT_APART_DEG
 apart (their glints differ) share exactly the static part of their patterns, so over such pairs
 Σ pᵢ·pⱼ / Σ ½(|pᵢ|² + |pⱼ|²) estimates the static share of the block variance (`StaticTexture.share`). Of a
-point's static variance, the part common to the campaign is the mean correlation of its ROI mean's static error
-with the other views', the overlap of their footprints on the sample (`StaticTexture.common_fraction`).
+point's static error sᵢ, what the campaign's mean static error s̄ (one shift of every point) takes with it is
+σᵢ² − Var(sᵢ − s̄), from the overlaps of the views' footprints on the sample (`StaticTexture.common_variance`).
 
 On the simulated rig (docs/uncertainty.md) the pair estimate gives 0.20–0.27 where the static factor, rendered
 apart, makes 0.23–0.28 of the block patterns' power, and the footprint overlap predicts the correlation of two
@@ -82,11 +82,14 @@ class StaticTexture:
         self._shape: tuple[int, int] | None = None
         self._cross = 0.0
         self._power = 0.0
+        self._block_area = 0.0                       # Σ block variance (relative) × footprint area
         self.n = 0
         self.pairs = 0
 
-    def observe(self, point_id: str, pattern: np.ndarray, grid: np.ndarray, half: np.ndarray) -> None:
-        """Add a point's ROI pattern (rows × columns of blocks), its `grid_map` and `half_vector`. A point seen
+    def observe(self, point_id: str, pattern: np.ndarray, grid: np.ndarray, half: np.ndarray,
+                block_rel_sq: float) -> None:
+        """Add a point's ROI pattern (rows × columns of blocks), its `grid_map`, `half_vector` and the relative
+        variance of its ROI mean from the block spread (noise and texture). A point seen
         before (its row is built again once E⊥ brackets it) is not added twice; patterns of another grid than the
         first, and edge-on views (`usable`), are left out."""
         if point_id in self._seen or (self._shape is not None and pattern.shape != self._shape) or not usable(grid):
@@ -114,6 +117,7 @@ class StaticTexture:
             self._areas, self._halves = _resized(self._areas, grow), _resized(self._halves, grow)
         self._patterns[n], self._maps[n], self._inverse[n] = p, grid, np.linalg.inv(grid)
         self._areas[n], self._halves[n] = abs(np.linalg.det(grid)), half
+        self._block_area += block_rel_sq * self._areas[n]
         self.n += 1
 
     @property
@@ -123,19 +127,27 @@ class StaticTexture:
             return 0.0
         return float(np.clip(self._cross / self._power, 0.0, 1.0))
 
-    def common_fraction(self, point_id: str, grid: np.ndarray) -> float:
-        """Mean correlation of a view's static error (its ROI mean over the grain) with the views seen so far,
-        itself included: the overlap of their footprints on the sample over the geometric mean of their areas
-        (a grain much finer than the footprint). Taken once per point (its row is built again once E⊥ brackets
-        it), over at most MAX_VIEWS views spread over those seen."""
+    def common_variance(self, point_id: str, grid: np.ndarray) -> float:
+        """The relative variance of a view's static error that the campaign's mean static error takes with it:
+        σᵢ² − Var(sᵢ − s̄) = 2 Cov(sᵢ, s̄) − Var(s̄), at least 0 (module docstring), over the views seen so far.
+
+        A grain much finer than the footprint gives a view's ROI mean a static variance σᵢ² = S/Aᵢ (Aᵢ its
+        footprint's area; S = share × the mean of block variance × area) and two views a covariance
+        S |Aᵢ ∩ Aⱼ| / (Aᵢ Aⱼ), so Cov(sᵢ, s̄) = σᵢ² · mean over j of |Aᵢ ∩ Aⱼ| / Aⱼ. A small footprint (a view
+        along the normal) has the largest static error and shares the least of it; a long one (a grazing view)
+        holds the others and shares nearly all of its small one. A view's overlap is taken once (its row is
+        built again once E⊥ brackets it), over at most MAX_VIEWS views spread over those seen."""
+        if not self.n or self.share <= 0:
+            return 0.0
         if point_id not in self._common:
-            self._common[point_id] = self._overlap(grid)
-        return self._common[point_id]
+            self._common[point_id] = self._overlap(grid) / abs(float(np.linalg.det(grid)))
+        scale = self.share * self._block_area / self.n
+        mean_cov = scale * float(np.mean(list(self._common.values())))
+        return max(2.0 * scale * self._common[point_id] - mean_cov, 0.0)
 
     def _overlap(self, grid: np.ndarray) -> float:
+        """Mean over the views seen of |A ∩ Aⱼ| / Aⱼ for this view's footprint A."""
         n = self.n
-        if not n:
-            return 1.0
         rows, cols = self._shape or (1, 1)
         steps = (np.arange(OVERLAP_GRID) + 0.5) / OVERLAP_GRID - 0.5
         gx, gy = np.meshgrid(steps * cols, steps * rows)
@@ -146,8 +158,7 @@ class StaticTexture:
         lx = inv[:, 0, 0, None] * sx + inv[:, 0, 1, None] * sy               # in each view's own grid
         ly = inv[:, 1, 0, None] * sx + inv[:, 1, 1, None] * sy
         inside = ((np.abs(lx) <= cols / 2.0) & (np.abs(ly) <= rows / 2.0)).mean(axis=1)
-        rho = np.minimum(inside * np.sqrt(abs(np.linalg.det(grid)) / areas), 1.0)
-        return float(np.clip(np.mean(rho), 0.0, 1.0))
+        return float(np.mean(np.minimum(inside * abs(np.linalg.det(grid)) / areas, 1.0)))   # mean |Aᵢ ∩ Aⱼ| / Aⱼ
 
 
 def _resized(a: np.ndarray, rows: int) -> np.ndarray:

@@ -103,7 +103,7 @@ def test_the_static_grain_common_to_the_views_moves_to_the_correlated_part():
     last = rows[-1]
     assert last["u_brdf_per_sr"] == pytest.approx(plain["u_brdf_per_sr"], rel=1e-12)
     block_sq = 0.003 ** 2                                           # u_noise² + u_texture² of `measurement`
-    assert last["u_rel_texture_static"] ** 2 == pytest.approx(0.5 * block_sq, rel=0.25)
+    assert last["u_rel_texture_static"] ** 2 == pytest.approx(0.5 * block_sq, rel=0.25)     # one footprint: all common
     assert last["u_rel_texture"] ** 2 + last["u_rel_texture_static"] ** 2 == pytest.approx(
         plain["u_rel_texture"] ** 2, rel=1e-9)
     f = last["brdf_per_sr"]

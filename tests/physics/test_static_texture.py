@@ -44,7 +44,7 @@ def estimate(sim: SimulationConfig) -> tuple[StaticTexture, float]:
         pattern = roi_statistics(s * g, np.zeros_like(s)).pattern
         assert pattern is not None
         texture.observe(p.point_id, pattern, grid_map(p.motors_deg),
-                        half_vector(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg))
+                        half_vector(p.theta_i_deg, p.phi_i_deg, p.theta_o_deg, p.phi_o_deg), 1e-6)
         static_power += float(np.sum(roi_statistics(s, np.zeros_like(s)).pattern ** 2))
         power += float(np.sum(pattern ** 2))
     return texture, static_power / power
@@ -68,14 +68,30 @@ def test_too_few_pairs_move_nothing():
     texture = StaticTexture()
     pattern = np.ones((7, 7))
     for k in range(5):
-        texture.observe(f"p{k}", pattern, np.eye(2), half_vector(10.0 * k, 0.0, 0.0, 0.0))
+        texture.observe(f"p{k}", pattern, np.eye(2), half_vector(10.0 * k, 0.0, 0.0, 0.0), 1e-6)
     assert 0 < texture.pairs < MIN_PAIRS and texture.share == 0.0
 
 
-def test_overlapping_footprints_share_their_grain():
-    """A view along the normal and one at 60° (its footprint twice as long, holding the first): each shares
-    with the other the overlap over the geometric mean of their areas, 1/√2."""
-    texture = StaticTexture()
-    texture.observe("a", np.ones((7, 7)), np.eye(2), half_vector(0, 0, 0, 0))
+def views(grids: list[np.ndarray]) -> StaticTexture:
+    """One grain pattern seen alike by views with these footprints (half vectors 10° apart: no glint shared),
+    each with a block variance of 1e-6 per unit of footprint area (the static error's σ² ∝ 1/area)."""
+    texture, grain = StaticTexture(), np.random.default_rng(0).standard_normal((7, 7))
+    for k, grid in enumerate(grids):
+        texture.observe(f"v{k}", grain, grid, half_vector(5.0 * k, 0.0, 5.0 * k, 180.0),
+                        1e-6 / abs(np.linalg.det(grid)))
+    return texture
+
+
+def test_one_footprint_for_every_view_makes_the_whole_grain_common():
+    texture = views([np.eye(2)] * 30)
+    assert texture.share == pytest.approx(1.0)
+    assert all(texture.common_variance(f"v{k}", np.eye(2)) == pytest.approx(1e-6) for k in range(30))
+
+
+def test_a_small_footprint_among_long_ones_shares_least_of_its_grain():
+    """A view along the normal (footprint 1) among views at 60° (footprint 2, holding it): its static error
+    (σ² = 1e-6) is the largest and the campaign's mean takes only part of it; theirs (5e-7) nearly all."""
     tilted = np.diag([2.0, 1.0])
-    assert texture.common_fraction("b", tilted) == pytest.approx(1 / np.sqrt(2), abs=0.02)
+    texture = views([tilted] * 30 + [np.eye(2)])
+    normal, long = texture.common_variance("v30", np.eye(2)), texture.common_variance("v0", tilted)
+    assert normal < 0.75e-6 and long == pytest.approx(5e-7, rel=0.1)
