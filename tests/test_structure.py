@@ -1,16 +1,19 @@
 """The structure check of issue 32, on the repository's own files (nothing outside it is read): one
 DiskFullError, one Motors and one grazing limit; the capture path chosen once (at most one isinstance on the
 calibrated path in rig/acquisition); no bench or soak module in the runtime packages; a docstring in every
-package `__init__` saying what the package owns. The layers and no-cycle contracts are import-linter's
+package `__init__` saying what the package owns; every event kind of events.jsonl written and read by its name in
+rig.core.events, never as a bare string. The layers and no-cycle contracts are import-linter's
 (.ci/checks)."""
 
 import ast
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from repo_paths import ROOT
+from rig.core import events
 
 #: The installed package: rig/, with drivers/ and simulators/ as rig.drivers and rig.simulators.
 PACKAGE_DIRS = (ROOT / "rig", ROOT / "drivers", ROOT / "simulators")
@@ -89,3 +92,77 @@ def test_every_package_says_what_it_owns():
     assert len(packages) >= 15
     bare = [str(p.relative_to(ROOT)) for p in packages if not (ast.get_docstring(tree(p)) or "").strip()]
     assert bare == []
+
+
+#: The calls that write an event: a run's `event`/`_event`/`event_synced_behind`, a driver's `events` sink, the
+#: retry's `on_retry`, the held-events buffer's `_hold`.
+EMITTERS = re.compile(r"event|^on_retry$|^_hold$")
+#: Every kind rig.core.events names (its values are the on-disk format).
+KINDS = {value for name, value in vars(events).items() if name.isupper() and isinstance(value, str)}
+
+
+def _callee(func: ast.expr) -> str:
+    return func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else ""
+
+
+def _kind_of_record(node: ast.expr) -> bool:
+    """`record.get("event")` or `record["event"]`: a record's kind, read back."""
+    if isinstance(node, ast.Call) and _callee(node.func) == "get" and node.args:
+        key = node.args[0]
+    elif isinstance(node, ast.Subscript):
+        key = node.slice
+    else:
+        return False
+    return isinstance(key, ast.Constant) and key.value == "event"
+
+
+def _strings(node: ast.expr | None) -> list[ast.Constant]:
+    """The string literals `node` is, or chooses between (a conditional, a tuple or set of them)."""
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return [node]
+    if isinstance(node, ast.IfExp):
+        return _strings(node.body) + _strings(node.orelse)
+    if isinstance(node, ast.Tuple | ast.List | ast.Set):
+        return [c for e in node.elts for c in _strings(e)]
+    return []
+
+
+def bare_event_kinds(module: ast.Module) -> list[tuple[int, str]]:
+    """Event kinds `module` spells as string literals (line, kind): the first argument of an event-writing call, a
+    dict literal's "event", a comparison with a record's kind, or a known kind compared with a variable `kind`."""
+    found: list[ast.Constant] = []
+    for node in ast.walk(module):
+        if isinstance(node, ast.Call) and node.args and EMITTERS.search(_callee(node.func)):
+            found += _strings(node.args[0])
+        elif isinstance(node, ast.Dict):
+            found += [c for k, v in zip(node.keys, node.values, strict=True)
+                      if isinstance(k, ast.Constant) and k.value == "event" for c in _strings(v)]
+        elif isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(_kind_of_record(side) for side in sides):
+                found += [c for side in sides for c in _strings(side)]
+            elif any(isinstance(side, ast.Name) and side.id == "kind" for side in sides):
+                found += [c for side in sides for c in _strings(side) if c.value in KINDS]
+    return sorted((c.lineno, c.value) for c in found)
+
+
+def test_event_kinds_are_written_by_their_names():
+    """rig.core.events is the one place an event kind is spelled; everyone else writes and reads it by name."""
+    found = [f"{path.relative_to(ROOT)}:{line} {kind!r}" for path in modules()
+             if path != ROOT / "rig" / "core" / "events.py" for line, kind in bare_event_kinds(tree(path))]
+    assert found == []
+
+
+def test_the_event_kind_check_finds_a_bare_string():
+    sample = ast.parse('''
+writer.event("filter", device="attenuator")
+self.events("watchdog_expired" if expired else events.WATCHDOG_OFF, device=name)
+on_retry("retry", device=device)
+record = {"time_utc": now, "event": "resume"}
+if e.get("event") in ("warmup_stable", events.WARMUP_NOT_STABLE): pass
+if kind == "lamp_on": pass
+writer.event(events.FILTER, what="the names are fine")
+if kind == "board": pass
+''')
+    assert bare_event_kinds(sample) == [(2, "filter"), (3, "watchdog_expired"), (4, "retry"), (5, "resume"),
+                                        (6, "warmup_stable"), (7, "lamp_on")]

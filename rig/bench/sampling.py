@@ -103,7 +103,7 @@ def measuring_time_s(folder: Path) -> float:
     stable = end = 0.0
     for line in (folder / "events.jsonl").read_text().splitlines():
         event = json.loads(line)
-        if event.get("event") == "warmup_stable":
+        if event.get("event") == WARMUP_STABLE:
             stable = float(event["rig_time_s"])
         if "rig_time_s" in event:
             end = max(end, float(event["rig_time_s"]))

@@ -26,6 +26,7 @@ from rig.acquisition.engine import NOMINAL_CAPTURE_S
 from rig.analysis.adaptive import choose_batch
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
+from rig.core import events
 from rig.planning.candidates import candidate_plan
 from rig.planning.collisions import zones_of
 from rig.planning.ordering import START_DEG, path_time_s
@@ -86,7 +87,7 @@ class AdaptiveSampler:
             reason = f"target reached: largest u/(f+τ) {batch.max_u_rel:.4f} ≤ {spec.target_u_rel:g}"
         if reason is not None or batch is None:
             self.done = reason
-            event("sampling_done", reason=reason, batches=self.batches, planned_rig_time_s=self.planned_s)
+            event(events.SAMPLING_DONE, reason=reason, batches=self.batches, planned_rig_time_s=self.planned_s)
             return []
         checked = drop_colliding_moves(Plan((), batch.points, ()), self.rig.axes, self.zones, position)
         kept, unreachable = list(checked.points), [s.point_id for s in checked.skipped]
@@ -95,7 +96,7 @@ class AdaptiveSampler:
         self.taken |= {p.point_id for p in kept} | set(unreachable)
         self.here = kept[-1].motors_deg if kept else self.here
         self.batches += 1
-        event("adaptive_batch", batch=self.batches, series=batch.series, points=[p.point_id for p in kept],
+        event(events.ADAPTIVE_BATCH, batch=self.batches, series=batch.series, points=[p.point_id for p in kept],
               motors_deg=[list(p.motors_deg) for p in kept], unreachable=unreachable, estimated_s=estimated,
               planned_rig_time_s=self.planned_s, gain=batch.gain, score_per_s=batch.score_per_s,
               max_u_rel=batch.max_u_rel,
