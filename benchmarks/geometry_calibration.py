@@ -31,18 +31,15 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
+from rig.bench.truth import measured_with_truth  # noqa: E402
 from rig.calibration.geometry import measure  # noqa: E402
 from rig.config.campaign import Campaign, load_campaign  # noqa: E402
 from rig.config.geometry_calibration import save_geometry_calibration  # noqa: E402
 from rig.config.rigfile import RigConfig, SimulationConfig, load_rig_config, simulated_rig  # noqa: E402
-from rig.data.dataset_reader import load  # noqa: E402
-from rig.physics.brdf_models import get_model  # noqa: E402
 from rig.physics.charuco_board import BoardLayout  # noqa: E402
 from rig.physics.geometry import AXIS_NAMES  # noqa: E402
 from rig.physics.goniometer_fit import calibration_poses  # noqa: E402
-from rig.session.connect import open_campaign_rig  # noqa: E402
 from rig.simulators.rig import SimulatedRig  # noqa: E402
 
 SIGMA_DEG = 0.3
@@ -75,13 +72,7 @@ def calibrated_rig(rig: RigConfig, calibration: Path) -> RigConfig:
 
 def run(campaign: Campaign, rig: RigConfig, out: Path) -> tuple[np.ndarray, np.ndarray]:
     """|relative error| and (f − truth)/u of every point with a value."""
-    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
-    assert outcome.status == "complete", outcome.status
-    d = load(out)
-    truth_spec = campaign.sample.simulated_brdf
-    assert truth_spec is not None
-    wi, wo = d.directions()
-    truth = get_model(truth_spec.model)(wi, wo, truth_spec.params)
+    d, truth = measured_with_truth(campaign, rig, out)
     f, u = d["brdf_per_sr"], d["u_brdf_per_sr"]
     ok = np.isfinite(f) & np.isfinite(u) & (truth > 0)
     return np.abs(f[ok] / truth[ok] - 1), (f[ok] - truth[ok]) / u[ok]

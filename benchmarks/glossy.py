@@ -28,13 +28,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
+from rig.bench.truth import measured_with_truth  # noqa: E402
 from rig.config.campaign import Campaign, load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig, SimulationConfig, simulated_rig  # noqa: E402
-from rig.data.dataset_reader import load  # noqa: E402
-from rig.physics.brdf_models import get_model  # noqa: E402
-from rig.session.connect import open_campaign_rig  # noqa: E402
 
 TESTS = ROOT / "tests" / "campaigns"
 
@@ -64,13 +61,7 @@ def samples(paper: bool) -> dict[str, Campaign]:
 
 
 def run(campaign: Campaign, rig: RigConfig, out: Path) -> dict[str, float]:
-    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
-    assert outcome.status == "complete", outcome.status
-    d = load(out)
-    truth_spec = campaign.sample.simulated_brdf
-    assert truth_spec is not None
-    wi, wo = d.directions()
-    truth = get_model(truth_spec.model)(wi, wo, truth_spec.params)
+    d, truth = measured_with_truth(campaign, rig, out)
     with (out / "brdf.csv").open() as f:
         rows = list(csv.DictReader(f))
     with (out / "events.jsonl").open() as f:

@@ -85,23 +85,13 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
     """Run the procedure (module docstring) and return the calibration; GeometryCalibrationError naming what to
     change when the views cannot give one. The lamp is switched off again before this returns or raises."""
     detector = cv2.aruco.CharucoDetector(board.cv2_board())
-    camera, sensor = devices.camera, devices.camera.sensor
+    sensor = devices.camera.sensor
     if devices.attenuator is not None and config.attenuator is not None:
         clearest = max(config.attenuator.filters, key=lambda f: f.transmission)       # the board is dim
         devices.attenuator.move_to(clearest.position)
     show(board.scene())
-    boards: list[_Seen] = []
-    exposure: float | None = None
-    for i, pose in enumerate(board_poses):
-        seen = _Seen(f"board-{i + 1:02d}", "board", pose)
-        if (why := _move(devices, config, pose)) is not None:
-            seen.rejected = why
-        else:
-            seen.motors_deg = _read_back(devices)
-            exposure = exposure or _meter(camera, sensor)
-            seen.ids, seen.points_px, seen.rejected = _corners(detector, camera.capture(exposure).pixels_dn, sensor)
-        progress(f"{seen.label}: {seen.rejected or f'{seen.count} corners'}")
-        boards.append(seen)
+    boards = _take_views(devices, config, "board", board_poses, lambda px: _corners(detector, px, sensor),
+                         lambda seen: f"{seen.count} corners", progress)
     found = [s for s in boards if s.rejected is None]
     if not found:
         raise GeometryCalibrationError(f"the board was not found in any of the {len(boards)} views: check that it "
@@ -218,28 +208,48 @@ def lamp_centroid(pixels: np.ndarray, sensor: SensorInfo) -> tuple[np.ndarray | 
     return np.array([(weight * cols).sum() / total, (weight * rows).sum() / total]), None
 
 
+#: What a view's picture gives: the corner ids (None for a lamp view), the points found (px), or why none count.
+Found = tuple[np.ndarray | None, np.ndarray | None, str | None]
+
+
+def _take_views(devices: RigDevices, config: RigConfig, kind: Literal["board", "lamp"], poses: list[Motors],
+                find: Callable[[np.ndarray], Found], describe: Callable[[_Seen], str],
+                progress: Callable[[str], None]) -> list[_Seen]:
+    """Each pose in turn: move, read the axes back, take a picture at the exposure metered on the first one and let
+    `find` look in it; a pose the rig cannot reach is kept as rejected, with why."""
+    camera, sensor = devices.camera, devices.camera.sensor
+    views: list[_Seen] = []
+    exposure: float | None = None
+    for i, pose in enumerate(poses):
+        seen = _Seen(f"{kind}-{i + 1:02d}", kind, pose)
+        if (why := _move(devices, config, pose)) is not None:
+            seen.rejected = why
+        else:
+            seen.motors_deg = _read_back(devices)
+            exposure = exposure or _meter(camera, sensor)
+            seen.ids, seen.points_px, seen.rejected = find(camera.capture(exposure).pixels_dn)
+        progress(f"{seen.label}: {seen.rejected or describe(seen)}")
+        views.append(seen)
+    return views
+
+
+def _lamp_exit(pixels: np.ndarray, sensor: SensorInfo) -> Found:
+    """A lamp view's find: the exit's centroid as the one point, or why there is none."""
+    centroid, why = lamp_centroid(pixels, sensor)
+    return None, (None if centroid is None else centroid[None, :]), why
+
+
 def _lamp_views(devices: RigDevices, config: RigConfig, poses: list[Motors],
                 progress: Callable[[str], None]) -> list[_Seen]:
     """The lamp views, the lamp on for them and off afterwards whatever happens."""
-    lamp, camera, sensor = devices.lamp, devices.camera, devices.camera.sensor
+    lamp, sensor = devices.lamp, devices.camera.sensor
     views: list[_Seen] = []
     try:
         lamp.set_current(0.0)
         lamp.set_output(True)
         lamp.set_current(config.lamp.current_a, ramp_s=config.lamp.ramp_s)
-        exposure: float | None = None
-        for i, pose in enumerate(poses):
-            seen = _Seen(f"lamp-{i + 1:02d}", "lamp", pose)
-            if (why := _move(devices, config, pose)) is not None:
-                seen.rejected = why
-            else:
-                seen.motors_deg = _read_back(devices)
-                exposure = exposure or _meter(camera, sensor)
-                centroid, seen.rejected = lamp_centroid(camera.capture(exposure).pixels_dn, sensor)
-                seen.points_px = None if centroid is None else centroid[None, :]
-            where = "" if seen.points_px is None else "lamp exit at ({:.2f}, {:.2f}) px".format(*seen.points_px[0])
-            progress(f"{seen.label}: {seen.rejected or where}")
-            views.append(seen)
+        views = _take_views(devices, config, "lamp", poses, lambda px: _lamp_exit(px, sensor),
+                            lambda seen: "lamp exit at ({:.2f}, {:.2f}) px".format(*seen.found()[1][0]), progress)
     finally:
         lamp.set_output(False)
     return views

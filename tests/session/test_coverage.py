@@ -13,12 +13,9 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS as CAMPAIGNS
-from rig.acquisition.run import run_campaign
+from rig.bench.truth import measured_with_truth
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig, SimulationConfig
-from rig.data.dataset_reader import load
-from rig.physics.brdf_models import get_model
-from rig.session.connect import open_campaign_rig
 
 SEEDS = range(1, 7)
 
@@ -27,12 +24,7 @@ def errors(tmp_path, name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     campaign = load_campaign(CAMPAIGNS / name)
     rig = RigConfig(simulation=SimulationConfig(seed=seed))
     out = tmp_path / f"{name}-{seed}"
-    outcome = run_campaign(campaign, rig, out, open_campaign_rig)
-    assert outcome.status == "complete"
-    d = load(out)
-    truth_spec = campaign.sample.simulated_brdf
-    wi, wo = d.directions()
-    truth = get_model(truth_spec.model)(wi, wo, truth_spec.params)
+    d, truth = measured_with_truth(campaign, rig, out)
     rel, u_point_rel = d["brdf_per_sr"] / truth - 1, d["u_brdf_point_per_sr"] / d["brdf_per_sr"]
     shared = np.column_stack([np.ones(rel.size), np.tan(np.radians(np.minimum(d["theta_i_deg"], 89.0)))])
     coef = np.linalg.lstsq(shared / u_point_rel[:, None], rel / u_point_rel, rcond=None)[0]
