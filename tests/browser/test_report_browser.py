@@ -38,6 +38,13 @@ def test_the_report_prints_to_a_pdf_of_several_pages(browser, report_url):
     from selenium.webdriver.common.print_page_options import PrintOptions
 
     browser.get(report_url)
+    # On a loaded machine headless Chromium can print a blank page (860 bytes, one page) when asked at the load
+    # event, before the embedded figures are decoded and laid out: print once they are, after two frames.
+    browser.set_script_timeout(60)
+    browser.execute_async_script("""
+        const done = arguments[arguments.length - 1];
+        Promise.all(Array.from(document.images).map(i => i.decode().catch(() => null)))
+            .then(() => requestAnimationFrame(() => requestAnimationFrame(() => done(true))));""")
     options = PrintOptions()
     options.page_width, options.page_height = 21.0, 29.7        # A4, cm
     pdf = base64.b64decode(browser.print_page(options))
