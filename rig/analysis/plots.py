@@ -31,7 +31,8 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.ticker import MaxNLocator
+from matplotlib.axis import Axis
+from matplotlib.ticker import LogFormatterSciNotation, LogLocator, MaxNLocator, NullFormatter
 
 from rig.data.dataset_format import DatasetError
 from rig.data.dataset_reader import Dataset, load
@@ -243,6 +244,15 @@ def _fit_title(fit: Mapping) -> str:
 PHI_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 
 
+def _log_ticks(axis: Axis, lo: float, hi: float) -> None:
+    """Labels a log axis can hold side by side: on a span of less than two decades matplotlib labels the minor
+    ticks, and "3×10⁻¹" runs into "4×10⁻¹"; there the labels go at 1, 2 and 5 per decade (0.4 and 0.3 of a
+    decade apart) and the minor ticks stay unlabelled, on wider spans at the decades."""
+    axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0) if np.log10(hi / lo) < 2 else (1.0,)))
+    axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(np.inf, np.inf)))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def residual_figure(ds: Dataset, fit: Mapping) -> Figure:
     """Fitted vs measured f_r and relative residuals vs θo, every series: colour = θi on a colour scale, marker =
     φi, so that sixteen series stay apart; the keys (colour bar, marker legend) sit outside the data."""
@@ -273,6 +283,8 @@ def residual_figure(ds: Dataset, fit: Mapping) -> Figure:
     ax_fit.plot(lims, lims, color="0.3", lw=1, ls="--")
     ax_fit.set(xscale="log", yscale="log", xlim=lims, ylim=lims, xlabel="measured f_r [sr⁻¹]",
                ylabel="fitted f_r [sr⁻¹]", title="fitted against measured (± u); dashed: equal")
+    for axis in (ax_fit.xaxis, ax_fit.yaxis):
+        _log_ticks(axis, *lims)
     ax_res.axhline(0, color="0.3", lw=1)
     ax_res.set(xlabel="viewing angle θo [deg]", ylabel="(measured − fitted) / fitted [%]",
                title="relative residual against θo (± u)", xlim=(0, 90))

@@ -151,3 +151,19 @@ def paper_like(e2e_dataset):
     columns["theta_i_deg"] = np.array([incidences[s][0] for s in series], float)
     columns["phi_i_deg"] = np.array([incidences[s][1] for s in series], float)
     return replace(e2e_dataset, columns=columns)
+
+
+def test_residual_tick_labels_stay_apart_on_a_narrow_log_range(e2e_dataset, truth_fit):
+    """A sample whose f_r spans less than a decade (0.2–0.6 sr⁻¹): matplotlib then labels the log axis's minor
+    ticks, and "3×10⁻¹" ran into "4×10⁻¹". No two drawn tick labels of either log axis may overlap."""
+    columns = {k: np.array(v, copy=True) for k, v in e2e_dataset.columns.items()}
+    f = columns["brdf_per_sr"]
+    columns["brdf_per_sr"] = 0.2 + 0.4 * (f - f.min()) / np.ptp(f)
+    narrow = replace(e2e_dataset, columns=columns)
+    fig = plots.residual_figure(narrow, truth_fit)
+    drawn = Drawn(fig)
+    ax_fit = fig.axes[0]
+    for axis in (ax_fit.xaxis, ax_fit.yaxis):
+        labels = drawn.boxes(t.label1 for t in axis.majorTicks + axis.minorTicks)
+        assert len(labels) >= 2                                  # the axis is still labelled
+        assert not [(p, q) for p, q in combinations(labels, 2) if p.overlaps(q)]
