@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.analysis.held_out import interpolating_predictor
 from rig.analysis.resampled import resampled
 from rig.analysis.result_files import read_fit
 from rig.analysis.road import road_json, road_quantities, shared_calibration_u_rel, write_road_json
 from rig.cli.predict import predictor_for
+from rig.cli.zemax_source import smooth_predictor
 from rig.core.exits import EXIT_OK, fail
 from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError
@@ -82,7 +82,7 @@ def _export_zemax(args: argparse.Namespace) -> list[Path]:
                              comments=[f"sample {ds.sample_id()}: model {fit['model']} fitted by rig ({args.fit}), "
                                        + ", ".join(f"{k} = {v!r}" for k, v in fit["params"].items())])
         return [result.path]
-    predictor = interpolating_predictor(ds)
+    predictor = smooth_predictor(ds)
     result = write_zemax(predictor, out, theta_max_deg=float(np.round(np.max(ds["theta_i_deg"]), 1)),
                          comments=[f"sample {ds.sample_id()}: the measurements of {ds.path}", predictor.method])
     theta_worst, share = result.worst_share()

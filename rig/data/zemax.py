@@ -85,7 +85,9 @@ class Predictor(Protocol):
 
 
 @dataclass(frozen=True)
-class FormulaValues:
+class TableValues:
+    """Values: what a predictor that serves the table only returns (no uncertainty: the table holds none)."""
+
     brdf_per_sr: np.ndarray
     extrapolated: np.ndarray
 
@@ -99,12 +101,12 @@ class FormulaPredictor:
         self.model, self.params = get_model(model), dict(params)
 
     def predict(self, theta_i_deg: ArrayLike, phi_i_deg: ArrayLike, theta_o_deg: ArrayLike,
-                phi_o_deg: ArrayLike) -> FormulaValues:
+                phi_o_deg: ArrayLike) -> TableValues:
         ti, pi_, to, po = np.broadcast_arrays(*(np.radians(np.asarray(a, float))
                                                 for a in (theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg)))
         with np.errstate(all="ignore"):
             f = self.model(sph_to_vec(ti, pi_), sph_to_vec(to, po), self.params)
-        return FormulaValues(f, np.ones(f.shape, bool))
+        return TableValues(f, np.ones(f.shape, bool))
 
 
 def _in_plane(predictor: Predictor, theta_i: float, x_deg: np.ndarray) -> np.ndarray:
@@ -175,13 +177,15 @@ def table(predictor: Predictor, theta_i_deg: float, grid: ZemaxGrid) -> tuple[np
     """The BSDF table at one incidence (0 below the horizon and where the predictor gives no finite value ≥ 0)
     and the mask of its cells above the horizon that the predictor flagged as extrapolated."""
     wo = scatter_directions(theta_i_deg, grid.azimuth_deg, grid.radial_deg)
-    above = wo[..., 2] > 1e-9
-    theta_o = np.degrees(np.arccos(np.clip(wo[..., 2], -1.0, 1.0)))
-    phi_o = np.degrees(np.arctan2(wo[..., 1], wo[..., 0]))
+    above = wo[..., 2] > 1e-9                   # about half the cells: only these are asked of the predictor
+    theta_o = np.degrees(np.arccos(np.clip(wo[above, 2], -1.0, 1.0)))
+    phi_o = np.degrees(np.arctan2(wo[above, 1], wo[above, 0]))
+    f, extrapolated = np.zeros(above.shape), np.zeros(above.shape, bool)
     with np.errstate(all="ignore"):
-        p = predictor.predict(theta_i_deg, 0.0, np.where(above, theta_o, 0.0), phi_o)
-        f = np.where(above, np.nan_to_num(np.asarray(p.brdf_per_sr, float), nan=0.0, posinf=0.0), 0.0)
-    return np.maximum(f, 0.0), np.asarray(p.extrapolated, bool) & above
+        p = predictor.predict(theta_i_deg, 0.0, theta_o, phi_o)
+        f[above] = np.nan_to_num(np.asarray(p.brdf_per_sr, float), nan=0.0, posinf=0.0)
+    extrapolated[above] = np.asarray(p.extrapolated, bool)
+    return np.maximum(f, 0.0), extrapolated
 
 
 def table_albedo(f: np.ndarray, theta_i_deg: float, grid: ZemaxGrid) -> float:
@@ -234,7 +238,8 @@ def write_zemax(predictor: Predictor, out: Path, *, theta_max_deg: float, commen
         fh.write("\n".join(header) + "\n")
         for (_, f, _), albedo in zip(rows, tis):
             fh.write(f"TIS\t{albedo:.6g}\n")
-            np.savetxt(fh, f, fmt="%.5g", delimiter="\t")
+            row = "\t".join(["%.5g"] * f.shape[1])        # one %-format of the whole table: savetxt's rows cost 10×
+            fh.write("\n".join([row] * f.shape[0]) % tuple(f.ravel().tolist()) + "\n")
         fh.write("DataEnd\n")
     return ZemaxExport(Path(out), grid, sum(int(np.count_nonzero(mask)) for _, _, mask in rows),
                        sum(int(np.count_nonzero(scatter_directions(t, grid.azimuth_deg, grid.radial_deg)[..., 2]
