@@ -28,14 +28,14 @@ must not change which points are chosen next (a resumed run ends with the same p
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from rig.analysis.held_out import calibrate
-from rig.analysis.predict import InterpolatingPredictor, measured_domain
+from rig.analysis.predict import SAME_INCIDENCE_DEG, InterpolatingPredictor, measured_domain
 from rig.analysis.validation import TAU_REL
 from rig.config.rigfile import AxesConfig
 from rig.config.zones import ForbiddenZone
@@ -47,6 +47,10 @@ from rig.planning.points import Motors, Plan, PlannedPoint
 
 #: u/(f + τ) of a candidate the interpolant can only extrapolate to (outside the measured hull or θi range).
 EXTRAPOLATED_U_REL = 0.3
+#: ...and at most this in a gain: an error of a factor e or more is "not known" however large the interpolant's u
+#: (a sliver of a hull or a steep bend can state 20), and letting it count more would let one such candidate, and
+#: the measurement noise it amplifies, decide the batch.
+MAX_GAIN_U_REL = 1.0
 #: The least span of θi (degrees) a series stands for (a candidate range of one incidence).
 MIN_WIDTH_DEG = 1.0
 #: A taken view damps the gain of candidates within this distance in the projected disk by (d/r)².
@@ -148,15 +152,17 @@ def spread_by_gain(points: Sequence[PlannedPoint], gain: np.ndarray, k: int) -> 
 
 def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measured: set[str], position: Motors,
                  axes: AxesConfig, zones: Sequence[ForbiddenZone], *, batch_points: int, capture_s: float,
-                 reading_s: float, max_s: float = np.inf,
+                 reading_s: float, max_s: float = np.inf, pattern: Collection[str] | None = None,
                  loo_cache: dict[bytes, np.ndarray] | None = None) -> Batch | None:
     """The batch of best gain per second of rig time from `position` among those that take at most `max_s`; None
-    when no candidate (or no batch that fits) is left. `loo_cache`: see rig.analysis.predict.measured_domain."""
+    when no candidate (or no batch that fits) is left. `pattern`: the candidates that are the table's own views
+    (rig.planning.candidates.pattern_ids); at an incidence not measured yet the batch is these, whole (`new_series`).
+    `loo_cache`: see rig.analysis.predict.measured_domain."""
     left = [p for p in candidates.points if p.point_id not in measured]
     if not left:
         return None
     u_rel, measured_deg = candidate_u_rel(rows, left, {p.point_id: p for p in candidates.points}, loo_cache)
-    gain = u_rel ** 2
+    gain = np.minimum(u_rel, MAX_GAIN_U_REL) ** 2
     thetas = [p.theta_i_deg for p in candidates.points]
     theta_range = (min(thetas), max(thetas))
     by_series: dict[int, list[int]] = {}
@@ -164,10 +170,16 @@ def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measure
         by_series.setdefault(p.series, []).append(k)
     best: Batch | None = None
     for series, idx in sorted(by_series.items()):
+        theta = left[idx[0]].theta_i_deg
+        shares = PARTIAL_SHARES
+        if pattern is not None and not np.any(np.abs(measured_deg - theta) <= SAME_INCIDENCE_DEG):
+            idx, shares = [k for k in idx if left[k].point_id in pattern], (1.0,)
+            if not idx:
+                continue
         pts = [left[k] for k in idx]
-        width = represented_width_deg(measured_deg, pts[0].theta_i_deg, theta_range)
+        width = represented_width_deg(measured_deg, theta, theta_range)
         batch = series_batch(candidates, series, pts, gain[idx], width, float(np.max(u_rel)), position, axes, zones,
-                             batch_points, capture_s, reading_s)
+                             batch_points, capture_s, reading_s, shares)
         if batch is None or batch.estimated_s > max_s:
             continue
         if best is None or binned(np.array(batch.score_per_s)) > binned(np.array(best.score_per_s)):
@@ -177,7 +189,8 @@ def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measure
 
 def series_batch(candidates: Plan, series: int, pts: Sequence[PlannedPoint], gain: np.ndarray, width: float,
                  max_u_rel: float, position: Motors, axes: AxesConfig, zones: Sequence[ForbiddenZone],
-                 batch_points: int, capture_s: float, reading_s: float) -> Batch | None:
+                 batch_points: int, capture_s: float, reading_s: float,
+                 shares: Sequence[float] = PARTIAL_SHARES) -> Batch | None:
     """The batch of one incidence: its views of largest (spread) gain, as many as give the best gain per second
     among the whole choice and its first half and quarter (`PARTIAL_SHARES`; a tie keeps more views). The
     stage's move and the E⊥ reading are paid once per batch, each view adds its capture and the arm's travel:
@@ -186,7 +199,7 @@ def series_batch(candidates: Plan, series: int, pts: Sequence[PlannedPoint], gai
     to fit: the caller passes over one that does not)."""
     order = spread_by_gain(pts, gain, batch_points)
     best: Batch | None = None
-    sizes = {min(len(order), max(MIN_BATCH_VIEWS, int(np.ceil(share * len(order))))) for share in PARTIAL_SHARES}
+    sizes = {min(len(order), max(MIN_BATCH_VIEWS, int(np.ceil(share * len(order))))) for share in shares}
     for k in sorted(sizes - {0}, reverse=True):
         chosen = order[:k]
         one = Plan(tuple(s for s in candidates.series if s.index == series), tuple(pts[i] for i in sorted(chosen)),

@@ -27,7 +27,7 @@ from rig.analysis.adaptive import choose_batch
 from rig.config.campaign import Campaign
 from rig.config.rigfile import RigConfig
 from rig.core import events
-from rig.planning.candidates import candidate_plan
+from rig.planning.candidates import candidate_plan, pattern_ids
 from rig.planning.collisions import zones_of
 from rig.planning.ordering import START_DEG, path_time_s
 from rig.planning.plan import drop_colliding_moves
@@ -55,6 +55,7 @@ class AdaptiveSampler:
         self.zones = zones_of(rig)
         self.candidates = candidate_plan(campaign, rig)
         self.candidate_ids = {p.point_id for p in self.candidates.points}
+        self.pattern = pattern_ids(campaign, self.candidates)
         in_batches = {pid for e in logged for pid in e["points"]}
         first_pass = replace(plan, points=tuple(p for p in plan.points if p.point_id not in in_batches))
         self.planned_s = planned_time_s(first_pass, rig) + sum(float(e["estimated_s"]) for e in logged)
@@ -77,7 +78,7 @@ class AdaptiveSampler:
         left_s = (spec.budget_rig_time_s - self.planned_s) if spec.budget_rig_time_s is not None else np.inf
         batch = choose_batch(rows, self.candidates, self.taken, position, self.rig.axes, self.zones,
                              batch_points=spec.batch_points, capture_s=NOMINAL_CAPTURE_S, reading_s=READING_S,
-                             max_s=left_s, loo_cache=self.loo_cache)
+                             max_s=left_s, pattern=self.pattern, loo_cache=self.loo_cache)
         reason = None
         if batch is None:
             reason = (f"budget reached: {self.planned_s:.0f} s planned of {spec.budget_rig_time_s:g} s, and no batch "

@@ -18,7 +18,7 @@ from rig.analysis.validation import TruthPredictor
 from rig.config.campaign import load_campaign
 from rig.config.rigfile import RigConfig
 from rig.physics import geometry as geo
-from rig.planning.candidates import candidate_plan
+from rig.planning.candidates import candidate_plan, pattern_ids
 from rig.planning.collisions import zones_of
 from rig.planning.plan import build_plan
 
@@ -131,3 +131,21 @@ def test_a_batch_is_a_part_of_the_pattern_only_where_the_rest_gains_little():
     assert MIN_BATCH_VIEWS <= len(partial.points) < len(points)
     assert {p.point_id for p in partial.points} >= {points[k].point_id for k in np.flatnonzero(few == 1.0)}
     assert partial.score_per_s > uniform.score_per_s * few.sum() / len(points)
+
+
+def test_an_incidence_not_measured_yet_is_taken_whole_as_its_patterns_own_views():
+    """A new incidence becomes a bracket of every direction between its neighbours: a part of it (or rings between
+    the table's without the table's own) would leave a lopsided hull there (issue 33). With every candidate at the
+    measured incidences taken, the next batch is at a new incidence and is its pattern's own views, all of them."""
+    candidates = candidate_plan(CAMPAIGN, RIG)
+    first = build_plan(CAMPAIGN, RIG).points
+    done = {round(p.theta_i_deg, 6) for p in first}
+    measured = {p.point_id for p in candidates.points if round(p.theta_i_deg, 6) in done}
+    rows = rows_of([p for p in candidates.points if p.point_id in measured])
+    own = pattern_ids(CAMPAIGN, candidates)
+    batch = choose_batch(rows, candidates, measured, first[-1].motors_deg, RIG.axes, zones_of(RIG), batch_points=256,
+                         capture_s=0.05, reading_s=0.5, pattern=own)
+    assert batch is not None and round(batch.points[0].theta_i_deg, 6) not in done
+    series = [p.point_id for p in candidates.points if p.series == batch.series]
+    assert sorted(p.point_id for p in batch.points) == sorted(pid for pid in series if pid in own)
+    assert len(batch.points) < len(series)                  # the rings between are left for a later batch
