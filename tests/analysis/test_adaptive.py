@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from repo_paths import TEST_CAMPAIGNS
+from rig.analysis import adaptive
 from rig.analysis.adaptive import (
     MIN_BATCH_VIEWS,
     binned,
@@ -149,3 +150,20 @@ def test_an_incidence_not_measured_yet_is_taken_whole_as_its_patterns_own_views(
     series = [p.point_id for p in candidates.points if p.series == batch.series]
     assert sorted(p.point_id for p in batch.points) == sorted(pid for pid in series if pid in own)
     assert len(batch.points) < len(series)                  # the rings between are left for a later batch
+
+
+def test_one_candidate_with_an_absurd_u_does_not_decide_the_batch(monkeypatch):
+    """u/(f + τ) of 20 (a hull's sliver, a steep bend) says "not known", as 1 does; counted as 20² it outweighed a
+    whole incidence of candidates at 0.9 and let the measurement noise it amplifies pick the batch, which broke a
+    resumed run's determinism (tests/session/test_adaptive_sampling.py)."""
+    candidates = candidate_plan(CAMPAIGN, RIG)
+    first = build_plan(CAMPAIGN, RIG).points
+    measured = {p.point_id for p in first}
+    left = [p for p in candidates.points if p.point_id not in measured]
+    lone, broad = 8, 11                                                  # the series at 40° and at 55°
+    u = np.array([0.9 if p.series == broad else 1e-3 for p in left])
+    u[next(k for k, p in enumerate(left) if p.series == lone)] = 20.0
+    monkeypatch.setattr(adaptive, "candidate_u_rel", lambda *args, **kwargs: (u, np.array([0.0, 30.0, 85.0])))
+    batch = choose_batch(rows_of(first), candidates, measured, first[-1].motors_deg, RIG.axes, zones_of(RIG),
+                         batch_points=8, capture_s=0.05, reading_s=0.5)
+    assert batch is not None and batch.series == broad
