@@ -171,7 +171,7 @@ def choose_batch(rows: Sequence[Mapping[str, object]], candidates: Plan, measure
     best: Batch | None = None
     for series, idx in sorted(by_series.items()):
         theta = left[idx[0]].theta_i_deg
-        shares = PARTIAL_SHARES
+        shares: Sequence[float] = PARTIAL_SHARES
         if pattern is not None and not np.any(np.abs(measured_deg - theta) <= SAME_INCIDENCE_DEG):
             idx, shares = [k for k in idx if left[k].point_id in pattern], (1.0,)
             if not idx:
