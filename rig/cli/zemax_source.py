@@ -7,14 +7,14 @@ apart cuts a chord under the convex tail of every lobe, where it meets the diffu
 (Table 2's rings) that overstates the albedo by 0.8–1.0 % at θi 80–85° even from exact values at the views
 (benchmarks/zemax_albedo.py). The ln f of a lobe is nearly quadratic in the angle from its axis (Phong's n ln cos,
 a Gaussian's square), which a cubic follows and a chord does not: the Clough–Tocher interpolant (a C¹ piecewise
-cubic on the same triangulation of the same views, gradients estimated from the views alone; Alfeld 1984, scipy's
-CloughTocher2DInterpolator) brings that to 0.3 % and below. It consults nothing but the measured values, as the
-linear one does.
+cubic over a triangulation of the same views, its gradients estimated from the views alone; scipy's
+CloughTocher2DInterpolator) brings that to +0.03 % and −0.08 %. It consults nothing but the measured values, as
+the linear one does.
 
 The disk it interpolates in is the equal-area one (radius ∝ sin(θo/2)) rather than the projected (Nusselt) disk of
-`rig predict`: near grazing views the Nusselt disk squeezes θo (sin θo flattens), so the grazing lobes become
-thin ridges there whose curvature the cubic's estimated gradients follow less well (0.5 % rather than 0.25 % at θi
-80°, same views). Everything else is `rig predict`'s: the triangulation's views (mirrored across the plane of
+`rig predict`: near grazing views the Nusselt disk squeezes θo (sin θo flattens), so the grazing lobes become thin
+ridges there whose curvature the cubic's estimated gradients follow less well (+0.30 % rather than +0.03 % at θi 80°
+from the exact values). Everything else is `rig predict`'s: the triangulation's views (mirrored across the plane of
 incidence), the hull and what counts as extrapolated, the value held beyond the hull (the nearest point of its
 edge), the lobe-aligned interpolation between incidences (linear in θi) and its calibration on held-out incidences
 (rig.analysis.held_out). The table holds values only, so `DataPredictor` computes no uncertainty: that is four
