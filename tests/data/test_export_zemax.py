@@ -244,3 +244,16 @@ def test_grid_follows_the_lobes():
     assert narrow.retro_width_deg < 2.0 and math.isinf(narrow.specular_width_deg)      # MRM: no mirror lobe
     assert np.diff(narrow.incidence_deg).max() == 0.5 and np.diff(narrow.radial_deg[narrow.radial_deg > 10]).max() \
         == 0.25
+
+
+def test_the_barycentric_transforms_are_scipys():
+    """rig.cli.zemax_source computes a triangulation's barycentric transforms in numpy (scipy's LAPACK loop took 6-11 s
+    under load): the same values, and the ones scipy's interpolant then uses (not recomputed)."""
+    from scipy.spatial import Delaunay
+
+    from rig.cli.zemax_source import with_transforms
+
+    points = np.random.default_rng(5).random((300, 2))
+    mesh = with_transforms(Delaunay(points))
+    assert mesh.transform is mesh._transform
+    assert np.allclose(mesh.transform, Delaunay(points).transform, rtol=1e-9, atol=1e-9)
