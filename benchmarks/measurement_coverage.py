@@ -8,9 +8,10 @@ and compares every measured point with the closed-form truth.
 
 The point-to-point part is what a row's `u_brdf_point_per_sr` must cover: the error left once the errors shared
 by the points are taken out. The shared ones here are the filters' transmissions (the simulator's camera and
-meter are exact: campaigns/rigs/simulated.yaml), one per filter position, and the axes' zero errors, through
-tan θi: a weighted fit of one relative shift per filter position plus tan θi times one angle takes them out
-before z = (f/f_true − 1 − fit)/(u_point/f).
+meter are exact: campaigns/rigs/simulated.yaml), one per filter position, and the four axes' zero errors, each
+through how the truth's f·cos θi changes with that axis at the point (`zero_error_columns`: tan θi through the
+stage, and on a lobed sample the lobe's slope through every axis): a weighted fit of one relative shift per
+filter position plus one angle per axis takes them out before z = (f/f_true − 1 − fit)/(u_point/f).
 Per family: k = 2 coverage and std(z) of that part (calibrated: about 95 % and 1), the median |shift| against the
 median correlated u (a shift the correlated part should cover), and z against the whole u.
 
@@ -37,20 +38,36 @@ from rig.config.campaign import SimulatedBrdf, load_campaign  # noqa: E402
 from rig.config.rigfile import SimulationConfig, simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
 from rig.physics.brdf_models import get_model  # noqa: E402
+from rig.physics.geometry import AXIS_NAMES, directions_scs  # noqa: E402
 from rig.session.connect import open_campaign_rig  # noqa: E402
 
 CAMPAIGN = ROOT / "campaigns" / "spieringhs2023-rm1.yaml"
 
 
+def zero_error_columns(family: str, params: dict[str, float], motors_deg: np.ndarray,
+                       step_deg: float = 0.01) -> np.ndarray:
+    """(N, 4): d ln(f_true · cos θi)/d(axis angle) per degree at each point's axis positions (N, 4), one column
+    per axis: what a zero error of that axis does to the measured f (the physical angle is the read-back plus
+    it). On a diffuse sample only the stage's (tan θi); near a lobe every axis's, with the lobe's slope."""
+    model = get_model(family)
+
+    def log_signal(motors: np.ndarray) -> np.ndarray:
+        wi, wo = directions_scs(*np.radians(motors.T))
+        return np.log(np.maximum(model(wi, wo, params) * wi[..., 2], 1e-300))
+    steps = np.eye(4) * step_deg
+    return np.column_stack([(log_signal(motors_deg + d) - log_signal(motors_deg - d)) / (2 * step_deg)
+                            for d in steps])
+
+
 def shared_out(rel: np.ndarray, u_rel: np.ndarray, filter_position: np.ndarray,
-               theta_i_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               zero_columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """z of the relative errors once the run's shared errors are taken out, and each filter's shift: a weighted
-    least-squares fit of one shift per filter position plus tan θi times one angle (the axes' zero errors)."""
+    least-squares fit of one shift per filter position plus one angle per axis (its zero error, through
+    `zero_error_columns`)."""
     positions = np.unique(filter_position)
-    design = np.column_stack([filter_position == p for p in positions]
-                             + [np.tan(np.radians(np.minimum(theta_i_deg, 89.0)))]).astype(float)
+    design = np.column_stack([(filter_position == p).astype(float) for p in positions] + [zero_columns])
     coef = np.linalg.lstsq(design / u_rel[:, None], rel / u_rel, rcond=None)[0]
-    return (rel - design @ coef) / u_rel, coef[:-1]
+    return (rel - design @ coef) / u_rel, coef[:len(positions)]
 
 
 def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
@@ -71,7 +88,9 @@ def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
     f, u = d["brdf_per_sr"], d["u_brdf_per_sr"]
     u_point, u_corr = d["u_brdf_point_per_sr"], d["u_brdf_correlated_per_sr"]
     rel, u_point_rel = f / truth - 1, u_point / f
-    z_point, shifts = shared_out(rel, u_point_rel, d["filter_position"], d["theta_i_deg"])
+    motors = np.column_stack([d[f"{axis}_deg"] for axis in AXIS_NAMES])
+    z_point, shifts = shared_out(rel, u_point_rel, d["filter_position"],
+                                 zero_error_columns(drawn.family, drawn.params, motors))
     u_shared = [float(np.median(u_corr[d["filter_position"] == p] / f[d["filter_position"] == p]))
                 for p in np.unique(d["filter_position"])]
     return {"z_point": z_point, "z_total": (f - truth) / u, "rel": rel, "shift": np.array(shifts),

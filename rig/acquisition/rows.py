@@ -20,6 +20,7 @@ import numpy as np
 
 from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
+from rig.physics.block_correlation import mean_variances
 from rig.physics.budget import lobe_angle_u_rel, point_budget, split_u
 from rig.physics.illuminance import IlluminanceEstimate, brdf_from_luminance, interpolate
 from rig.physics.static_texture import StaticTexture, grid_map, half_vector, usable
@@ -65,12 +66,15 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     the routine correction of `illuminance.correction: interpolate`, not a condition worth a look)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
     u_texture, u_static = texture_split(m, constants.texture)
+    # The ROI's u with its texture as the run's pooled block correlation has it (texture_split)
+    u_roi = float(np.sqrt(max(cap.u_luminance_cd_m2 ** 2 - cap.u_texture_cd_m2 ** 2 + u_texture ** 2
+                              + u_static ** 2, 0.0)))
     u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
-    u_luminance = float(np.hypot(cap.u_luminance_cd_m2, u_angle_lobe * cap.luminance_cd_m2))
+    u_luminance = float(np.hypot(u_roi, u_angle_lobe * cap.luminance_cd_m2))
     res = brdf_from_luminance(cap.luminance_cd_m2, u_luminance, e_perp_lx, u_e_perp_lx,
                               theta_i, constants.angle_u_deg, grazing_limit_deg=constants.grazing_limit_deg)
     flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
-    budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=cap.u_luminance_cd_m2,
+    budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=u_roi,
                           u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
                           u_texture_cd_m2=u_texture, u_lobe_cd_m2=cap.u_lobe_cd_m2,
                           lobe_angle_u_rel=u_angle_lobe,
@@ -85,7 +89,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
         "theta_i_deg": theta_i, "phi_i_deg": float(m.angles.phi_i_deg),
         "theta_o_deg": float(m.angles.theta_o_deg), "phi_o_deg": float(m.angles.phi_o_deg),
         "brdf_per_sr": float(res.brdf_per_sr), "u_brdf_per_sr": float(res.u_brdf_per_sr),
-        "luminance_cd_m2": cap.luminance_cd_m2, "u_luminance_cd_m2": cap.u_luminance_cd_m2,
+        "luminance_cd_m2": cap.luminance_cd_m2, "u_luminance_cd_m2": u_roi,
         "illuminance_lx": float(res.illuminance_lx), "illuminance_normal_lx": e_perp_lx,
         "stage_vertical_deg": m.motors_deg[0], "stage_normal_deg": m.motors_deg[1],
         "arm_azimuth_deg": m.motors_deg[2], "arm_polar_deg": m.motors_deg[3],
@@ -104,20 +108,25 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
 def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float]:
     """The point's texture u (cd/m²) without the static grain's part common to the campaign, and that part.
 
-    The point's pattern joins the run's estimate first, with its block variance (u_noise² + u_texture²,
-    relative); the part the campaign's mean static error takes with it (`common_variance`), at most the whole
-    texture, leaves the point's own u. Before the estimate has its minimum of view pairs (or without a pattern,
-    or for an edge-on view) nothing moves."""
+    The point's pattern joins the run's estimates first. Its texture is its independent-block variance times
+    the run's pooled inflation for its footprint (the neighbouring blocks' correlation, rig.physics.
+    block_correlation), less the noise; while too few views were seen, the ROI's own block u. That block
+    variance (relative) joins the static grain's estimate; the part the campaign's mean static error takes with
+    it (`common_variance`), at most the whole texture, leaves the point's own u. Before the estimate has its
+    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
     cap, grid = m.capture, grid_map(m.motors_deg)
     if cap.roi_pattern is None or not usable(grid) or cap.luminance_cd_m2 <= 0:
         return cap.u_texture_cd_m2, 0.0
-    block_rel_sq = (cap.u_noise_cd_m2 ** 2 + cap.u_texture_cd_m2 ** 2) / cap.luminance_cd_m2 ** 2
+    lum_sq, area = cap.luminance_cd_m2 ** 2, abs(float(np.linalg.det(grid)))
+    texture.blocks.observe(m.point.point_id, cap.roi_pattern, area)
+    inflation = texture.blocks.inflation(area)
+    texture_sq = cap.u_texture_cd_m2 ** 2 if inflation is None else max(
+        mean_variances(cap.roi_pattern)[1] * inflation * lum_sq - cap.u_noise_cd_m2 ** 2, 0.0)
     texture.observe(m.point.point_id, cap.roi_pattern, grid, half_vector(
         float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
-        float(m.angles.phi_o_deg)), block_rel_sq)
-    common_sq = min(texture.common_variance(m.point.point_id, grid) * cap.luminance_cd_m2 ** 2,
-                    cap.u_texture_cd_m2 ** 2)
-    return float(np.sqrt(cap.u_texture_cd_m2 ** 2 - common_sq)), float(np.sqrt(common_sq))
+        float(m.angles.phi_o_deg)), (cap.u_noise_cd_m2 ** 2 + texture_sq) / lum_sq)
+    common_sq = min(texture.common_variance(m.point.point_id, grid) * lum_sq, texture_sq)
+    return float(np.sqrt(texture_sq - common_sq)), float(np.sqrt(common_sq))
 
 
 def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:

@@ -24,8 +24,9 @@ import numpy as np
 BUDGET_COLUMNS = {
     "u_rel_noise": "camera shot and read noise of the ROI mean (HDR merge)",
     "u_rel_dark": "noise of the subtracted dark frame(s)",
-    "u_rel_texture": "ROI non-uniformity: sample texture and glints (block means about the lobe, minus noise), "
-                     "less the static grain's part common to the campaign",
+    "u_rel_texture": "ROI non-uniformity: sample texture and glints (block means about the lobe, minus noise, "
+                     "their neighbours' correlation pooled over the run), less the static grain's part common to "
+                     "the campaign",
     "u_rel_lobe": "the lobe's curvature over the view footprint: its correction to the ROI centre, or on a clear "
                   "slope the bias the fit estimates but cannot resolve, left uncorrected",
     "u_rel_lobe_angle": "axis angle errors through the lobe's measured slope (steep lobes only)",

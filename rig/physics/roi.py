@@ -22,6 +22,10 @@ about the fitted lobe rather than about their mean (which would count the lobe a
 not resolved the texture is the spread about the block means' plane (a slope averages out of the mean);
 on a clear slope the lobe's curvature still biases the mean, by about the bias the fit estimates, which
 is then u_lobe (no correction applied): a kink or a curved flank within the footprint (issue 34).
+
+A row does not take u_mean as it is: where the grain is about a block wide, neighbouring blocks correlate
+beyond what one ROI's edge covariance shows, so the row's texture is the ROI's independent-block variance
+times the neighbours' correlation pooled over the run's views (rig.physics.block_correlation, issue 34).
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rig.physics.block_correlation import BlockCorrelation
 from rig.physics.geometry import camera_frame, sample_frame, sph_to_vec
 
 #: Two views' block grids fall on the same sample area when no ROI corner lies farther apart than this (blocks).
@@ -85,6 +86,9 @@ class StaticTexture:
         self._block_area = 0.0                       # Σ block variance (relative) × footprint area
         self.n = 0
         self.pairs = 0
+        #: How the ROI's block means correlate, pooled over the run's views: the texture u a point's block
+        #: variance is (rig.physics.block_correlation); the run's other texture state, kept with this one.
+        self.blocks = BlockCorrelation()
 
     def observe(self, point_id: str, pattern: np.ndarray, grid: np.ndarray, half: np.ndarray,
                 block_rel_sq: float) -> None:
