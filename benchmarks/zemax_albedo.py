@@ -9,7 +9,7 @@ albedo ∫ f cos θo dω of
 
 - the truth (the simulated BRDF) on the export's own grid (its error against the closed form: the grid's share);
 - the export from data as `rig predict`'s piecewise-linear reconstruction gives it (the export before issue 37's fix);
-- the export from data as `rig export --format zemax --source data` writes it (rig.cli.zemax_source: a C¹ cubic
+- the export from data as `rig export --format zemax --source data` writes it (rig.analysis.smooth_views: a C¹ cubic
   within each incidence), split into the error inside the measured views' hull (interpolated) and beyond it
   (held at the hull's edge), and the share of the truth's albedo that lies beyond;
 - the same two reconstructions from the closed-form values at the measured views (no measurement error): what the
@@ -33,9 +33,9 @@ sys.path.insert(0, str(ROOT))
 
 from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.analysis.held_out import interpolating_predictor  # noqa: E402
+from rig.analysis.smooth_views import smooth_predictor  # noqa: E402
 from rig.bench.draws import draw  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
-from rig.cli.zemax_source import smooth_predictor  # noqa: E402
 from rig.config.campaign import Campaign, SimulatedBrdf, load_campaign  # noqa: E402
 from rig.config.rigfile import SimulationConfig, simulated_rig  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402

@@ -13,8 +13,8 @@ import numpy as np
 from rig.analysis.resampled import resampled
 from rig.analysis.result_files import read_fit
 from rig.analysis.road import road_json, road_quantities, shared_calibration_u_rel, write_road_json
+from rig.analysis.smooth_views import smooth_predictor
 from rig.cli.predict import predictor_for
-from rig.cli.zemax_source import smooth_predictor
 from rig.core.exits import EXIT_OK, fail
 from rig.core.interrupts import interruptible
 from rig.data.dataset_format import DatasetError

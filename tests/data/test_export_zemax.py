@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from planned_datasets import RM1, planned_dataset
+from rig.analysis.smooth_views import smooth_predictor
 from rig.cli.main import main
-from rig.cli.zemax_source import smooth_predictor
 from rig.data.zemax import AZIMUTH_DEG, FormulaPredictor, ZemaxGrid, table, table_albedo
 from rig.physics.brdf_models import albedo, get_model
 
@@ -188,7 +188,7 @@ def test_albedo_from_the_paper_views_at_grazing_incidence():
     incidences, with RM1's exact values there: the table's albedo (its TIS) within 0.5 % of the truth's. A
     piecewise-linear interpolant of ln f between the rings cuts chords under the lobes' convex tails: +0.83 % at
     80 deg and +1.03 % at 85 deg from these very values (`rig predict`'s; the export before issue 37's fix). The C1
-    cubic of rig.cli.zemax_source: +0.03 % and -0.08 %."""
+    cubic of rig.analysis.smooth_views: +0.03 % and -0.08 %."""
     predictor = smooth_predictor(planned_dataset(drop=lambda theta_i, theta_o, dphi: theta_i < 75))
     # the export's azimuths, radial angles 1 deg apart (the truth on this grid is within 0.05 % of its albedo)
     grid = ZemaxGrid(np.array([80.0, 85.0]), AZIMUTH_DEG, np.arange(181.0), math.inf, math.inf)
@@ -247,11 +247,11 @@ def test_grid_follows_the_lobes():
 
 
 def test_the_barycentric_transforms_are_scipys():
-    """rig.cli.zemax_source computes a triangulation's barycentric transforms in numpy (scipy's LAPACK loop took 6-11 s
-    under load): the same values, and the ones scipy's interpolant then uses (not recomputed)."""
+    """rig.analysis.smooth_views computes a triangulation's barycentric transforms in numpy (scipy's LAPACK loop took
+    6-11 s under load): the same values, and the ones scipy's interpolant then uses (not recomputed)."""
     from scipy.spatial import Delaunay
 
-    from rig.cli.zemax_source import with_transforms
+    from rig.analysis.smooth_views import with_transforms
 
     points = np.random.default_rng(5).random((300, 2))
     mesh = with_transforms(Delaunay(points))

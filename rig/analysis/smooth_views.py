@@ -131,8 +131,8 @@ def smooth_predictor(ds: Dataset) -> DataPredictor:
     incidences as `rig predict` does."""
     domain = MeasuredDomain([SmoothIncidenceViews.of(inc) for inc in measured_domain(ds).incidences])
     checks = calibrate(domain)
-    held = (f" (leave-one-incidence-out RMS error in ln f {checks[domain.aligned].rms:.3g} against "
-            f"{checks[not domain.aligned].rms:.3g} at {'fixed' if domain.aligned else 'lobe-aligned'} views)"
+    held = (f" (leave-one-incidence-out error in ln f, 95th percentile {checks[domain.aligned].p95:.3g} against "
+            f"{checks[not domain.aligned].p95:.3g} at {'fixed' if domain.aligned else 'lobe-aligned'} views)"
             if checks else "")
     return DataPredictor(domain, (
         "interpolate: C1 cubic (Clough-Tocher) in ln f over each incidence's views in the equal-area disk, linear in "
