@@ -21,7 +21,7 @@ import numpy as np
 from rig.acquisition.capture import PointCapture
 from rig.physics import geometry as geo
 from rig.physics.block_correlation import mean_variances
-from rig.physics.budget import lobe_angle_u_rel, point_budget, split_u
+from rig.physics.budget import lobe_angle_u_rel, lobe_view_readback_u_deg, point_budget, split_u
 from rig.physics.illuminance import IlluminanceEstimate, brdf_from_luminance, interpolate
 from rig.physics.static_texture import StaticTexture, grid_map, half_vector, usable
 from rig.planning.points import PlannedPoint
@@ -70,6 +70,8 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     u_roi = float(np.sqrt(max(cap.u_luminance_cd_m2 ** 2 - cap.u_texture_cd_m2 ** 2 + u_texture ** 2
                               + u_static ** 2, 0.0)))
     u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
+    u_angle_lobe_point = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, lobe_view_readback_u_deg(
+        constants.lobe_view_u_deg, constants.angle_u_deg, constants.readback_u_deg))
     u_luminance = float(np.hypot(u_roi, u_angle_lobe * cap.luminance_cd_m2))
     res = brdf_from_luminance(cap.luminance_cd_m2, u_luminance, e_perp_lx, u_e_perp_lx,
                               theta_i, constants.angle_u_deg, grazing_limit_deg=constants.grazing_limit_deg)
@@ -77,7 +79,8 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=u_roi,
                           u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
                           u_texture_cd_m2=u_texture, u_lobe_cd_m2=cap.u_lobe_cd_m2,
-                          lobe_angle_u_rel=u_angle_lobe,
+                          lobe_angle_u_rel=u_angle_lobe_point,
+                          lobe_angle_shared_u_rel=float(np.sqrt(max(u_angle_lobe ** 2 - u_angle_lobe_point ** 2, 0.0))),
                           calibration_u_rel=constants.calibration_u_rel,
                           attenuation_u_rel=cap.u_rel_attenuation,
                           e_perp_lx=e_perp_lx, u_e_perp_lx=u_e_perp_lx, u_drift_lx=u_drift_lx,

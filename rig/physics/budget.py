@@ -29,14 +29,15 @@ BUDGET_COLUMNS = {
                      "the campaign",
     "u_rel_lobe": "the lobe's curvature over the view footprint: its correction to the ROI centre, or on a clear "
                   "slope the bias the fit estimates but cannot resolve, left uncorrected",
-    "u_rel_lobe_angle": "axis angle errors through the lobe's measured slope (steep lobes only)",
+    "u_rel_lobe_angle": "the axes' read-back errors through the lobe's measured slope (steep lobes only)",
     "u_rel_calibration": "luminance calibration of the camera",
     "u_rel_attenuation": "transmission of the neutral-density filter in the beam (its calibration)",
     "u_rel_illuminance": "E⊥: meter readings (repeatability, range)",
     "u_rel_meter_calibration": "E⊥: the meter head's calibration factor (its certificate)",
     "u_rel_drift": "lamp drift between E⊥ readings",
     "u_rel_angle": "incidence angle, through tan θi: the axes' read-back, which differs from point to point",
-    "u_rel_angle_zero": "incidence angle, through tan θi: the axes' fixed zero errors, shared by every point",
+    "u_rel_angle_zero": "the axes' fixed zero errors (or the specular alignment's), through tan θi and a steep "
+                        "lobe's slope, shared by every point",
     "u_rel_texture_static": "ROI texture: the sample's static grain, seen alike from every view of the same area, "
                             "its part common to the campaign (rig.physics.static_texture)",
 }
@@ -75,6 +76,16 @@ def lobe_view_u_deg(angle_u_deg: float, readback_u_deg: float, alignment_u_deg: 
     return math.hypot(alignment_u_deg, readback_u_deg * LOBE_ANGLE_GAIN)
 
 
+def lobe_view_readback_u_deg(view_u_deg: float, angle_u_deg: float, readback_u_deg: float | None) -> float:
+    """The part of `view_u_deg` (`lobe_view_u_deg`) that differs from point to point: the axes' read-back
+    (`readback_u_deg` each, None: all of the angle u differs), combined as LOBE_ANGLE_GAIN says. The rest, the
+    axes' fixed zeros or the specular alignment's error, is the same at every point: through a lobe's slope it
+    moves each point by its own slope times one shared offset, a correlated error (`u_rel_angle_zero`)."""
+    if readback_u_deg is None:
+        return view_u_deg
+    return min(min(readback_u_deg, angle_u_deg) * LOBE_ANGLE_GAIN, view_u_deg)
+
+
 def lobe_angle_u_rel(slope_rel: float, footprint_deg: float, view_u_deg: float) -> float:
     """Relative u of a point on a steep lobe from the axes' angle errors: the lobe's log-slope measured over
     the ROI (per footprint, rig.physics.footprint) per degree, times the view direction's uncertainty
@@ -90,7 +101,8 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
                  attenuation_u_rel: float,
                  e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: float, theta_i_deg: float,
                  angle_u_deg: float, u_meter_cal_lx: float = 0.0,
-                 readback_u_deg: float | None = None, u_texture_static_cd_m2: float = 0.0) -> dict[str, float]:
+                 readback_u_deg: float | None = None, u_texture_static_cd_m2: float = 0.0,
+                 lobe_angle_shared_u_rel: float = 0.0) -> dict[str, float]:
     """The relative components (BUDGET_COLUMNS) of one point's BRDF uncertainty.
 
     The camera parts are relative to the luminance, or to its uncertainty where the ROI is
@@ -99,7 +111,9 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
     calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once. The incidence angle's u
     (`angle_u_deg`) splits into its read-back part (`readback_u_deg`, None: all of it) and the fixed zero
     errors' rest. `u_texture_static_cd_m2`: the static grain's part of the texture common to the campaign
-    (rig.physics.static_texture), apart from `u_texture_cd_m2`, the rest.
+    (rig.physics.static_texture), apart from `u_texture_cd_m2`, the rest. On a steep lobe the view's angle errors
+    split alike: `lobe_angle_u_rel` the read-back's part, `lobe_angle_shared_u_rel` the fixed offsets' (zeros or
+    the specular alignment's error, `lobe_view_readback_u_deg`), which joins the zero errors' component.
     """
     readback = angle_u_deg if readback_u_deg is None else min(readback_u_deg, angle_u_deg)
     tan_i = math.tan(math.radians(min(theta_i_deg, 89.9999)))
@@ -116,7 +130,8 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
         "u_rel_meter_calibration": u_meter_cal_lx / e_perp_lx,
         "u_rel_drift": u_drift_lx / e_perp_lx,
         "u_rel_angle": tan_i * math.radians(readback),
-        "u_rel_angle_zero": tan_i * math.radians(math.sqrt(angle_u_deg ** 2 - readback ** 2)),
+        "u_rel_angle_zero": math.hypot(tan_i * math.radians(math.sqrt(angle_u_deg ** 2 - readback ** 2)),
+                                       lobe_angle_shared_u_rel),
         "u_rel_texture_static": u_texture_static_cd_m2 / lum,
     }
 

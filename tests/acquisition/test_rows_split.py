@@ -112,3 +112,23 @@ def test_the_static_grain_common_to_the_views_moves_to_the_correlated_part():
     assert last["u_brdf_point_per_sr"] < plain["u_brdf_point_per_sr"]
     assert math.hypot(last["u_brdf_point_per_sr"], last["u_brdf_correlated_per_sr"]) == pytest.approx(
         last["u_brdf_per_sr"], rel=1e-12)
+
+
+def test_a_steep_lobes_angle_error_splits_into_read_back_and_shared_offsets():
+    """On a lobe's flank the view's angle errors move f by the lobe's slope times the error: the read-back's part
+    differs from point to point (`u_rel_lobe_angle`), the axes' fixed zeros are one offset for every point
+    (`u_rel_angle_zero`, with the zeros' tan θi part), and u itself is what it was: each part counted once."""
+    constants = dataclasses.replace(CONSTANTS, readback_u_deg=0.002)
+    m = measurement(5.0)
+    slope_per_footprint, footprint_deg = 2.0, 0.5
+    m = dataclasses.replace(m, footprint_deg=footprint_deg,
+                            capture=dataclasses.replace(m.capture, lobe_slope_rel=slope_per_footprint))
+    row = latest_row(m, reading(1000.0, 0.0), constants)
+    per_deg = slope_per_footprint / footprint_deg
+    assert row["u_rel_lobe_angle"] == pytest.approx(per_deg * 0.002 * math.sqrt(5), rel=1e-9)
+    shared_lobe = per_deg * math.sqrt(constants.lobe_view_u_deg ** 2 - (0.002 * math.sqrt(5)) ** 2)
+    tan_part = math.tan(math.radians(30.0)) * math.radians(math.sqrt(0.01 ** 2 - 0.002 ** 2))
+    assert row["u_rel_angle_zero"] == pytest.approx(math.hypot(tan_part, shared_lobe), rel=1e-9)
+    f, u = row["brdf_per_sr"], row["u_brdf_per_sr"]
+    assert math.sqrt(sum(row[c] ** 2 for c in row if c.startswith("u_rel_"))) == pytest.approx(u / f, rel=1e-9)
+    assert row["u_brdf_correlated_per_sr"] / f > shared_lobe
