@@ -81,3 +81,16 @@ def test_independent_blocks_are_not_inflated():
     assert blocks.inflation(1.0) == pytest.approx(1.0, abs=0.05)
     assert blocks.inflation(5.0) == blocks.inflation(1.0)         # no view of that class yet: the run's
     assert BlockCorrelation().inflation(1.0) is None
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (2, 5), (3, 2), (3, 3)])
+def test_the_smallest_rois_give_a_finite_variance(shape):
+    """`capture.roi_px` may be as small as 20 px (2 × 2 blocks): a plane leaves too few residuals there to tell
+    the neighbours' covariance from the variance (the moment matrix is singular, and a campaign with roi_px 20
+    failed with "Singular matrix"), so the pattern counts as independent blocks; from 3 × 3 on both are estimated."""
+    pattern = np.random.default_rng(1).standard_normal(shape)
+    pattern -= pattern.mean()
+    correlated, independent = mean_variances(pattern)
+    assert math.isfinite(correlated) and math.isfinite(independent) and independent > 0
+    if min(shape) < 3:
+        assert correlated == pytest.approx(independent, rel=1e-12)
