@@ -228,11 +228,11 @@ class IncidenceViews:
         a, b, c = (corners[candidates, j] for j in range(3))
         det = (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (c[..., 0] - a[..., 0]) * (b[..., 1] - a[..., 1])
         x, y = xy[:, None, 0] - a[..., 0], xy[:, None, 1] - a[..., 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):      # a degenerate triangle (det 0) holds nothing
             w1 = (x * (c[..., 1] - a[..., 1]) - (c[..., 0] - a[..., 0]) * y) / det
             w2 = ((b[..., 0] - a[..., 0]) * y - x * (b[..., 1] - a[..., 1])) / det
-        w = np.stack([1 - w1 - w2, w1, w2], axis=-1)
-        holds = np.all(w >= -1e-12, axis=-1) & (det != 0)
+            w = np.stack([1 - w1 - w2, w1, w2], axis=-1)
+            holds = np.all(w >= -1e-12, axis=-1) & (det != 0)
         found = holds.any(axis=1) & (simplex[rows] < 0)
         first = np.argmax(holds, axis=1)
         simplex[rows[found]] = candidates[found, first[found]]
