@@ -95,7 +95,7 @@ class CalibratedAcquisition:
             u_dark_cd_m2=0.0,
             u_texture_cd_m2=stats.u_texture,
             u_lobe_cd_m2=stats.u_lobe, lobe_bias_rel=stats.lobe_bias_rel, lobe_width_rel=stats.lobe_width_rel,
-            lobe_slope_rel=stats.lobe_slope_rel, roi_pattern=stats.pattern,
+            lobe_slope_rel=stats.lobe_slope_rel, roi_pattern=stats.pattern, lobe_weights=stats.centre_weights,
             capture_time_s=self.capture_time_s,
             n_darks=0,
         )

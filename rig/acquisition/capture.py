@@ -217,7 +217,7 @@ class Acquisition:
             lobe_bias_rel=stats.lobe_bias_rel,
             lobe_width_rel=stats.lobe_width_rel,
             lobe_slope_rel=stats.lobe_slope_rel,
-            roi_pattern=stats.pattern,
+            roi_pattern=stats.pattern, lobe_weights=stats.centre_weights,
             capture_time_s=self.capture_time_s,
             n_darks=self.n_darks,
         )

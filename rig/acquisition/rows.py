@@ -65,10 +65,11 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     `interpolated`: that E⊥ was interpolated between bracketing readings (a column, not a flag: it is
     the routine correction of `illuminance.correction: interpolate`, not a condition worth a look)."""
     cap, theta_i = m.capture, float(m.angles.theta_i_deg)
-    u_texture, u_static = texture_split(m, constants.texture)
-    # The ROI's u with its texture as the run's pooled block correlation has it (texture_split)
-    u_roi = float(np.sqrt(max(cap.u_luminance_cd_m2 ** 2 - cap.u_texture_cd_m2 ** 2 + u_texture ** 2
-                              + u_static ** 2, 0.0)))
+    u_texture, u_static, u_lobe = texture_split(m, constants.texture)
+    # The ROI's u with its texture (and the lobe correction's share of it) as the run's pooled block
+    # correlation has it (texture_split)
+    u_roi = float(np.sqrt(max(cap.u_luminance_cd_m2 ** 2 - cap.u_texture_cd_m2 ** 2 - cap.u_lobe_cd_m2 ** 2
+                              + u_texture ** 2 + u_static ** 2 + u_lobe ** 2, 0.0)))
     u_angle_lobe = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, constants.lobe_view_u_deg)
     u_angle_lobe_point = lobe_angle_u_rel(cap.lobe_slope_rel, m.footprint_deg, lobe_view_readback_u_deg(
         constants.lobe_view_u_deg, constants.angle_u_deg, constants.readback_u_deg))
@@ -78,7 +79,7 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     flags = m.flags + (("grazing_incidence",) if res.grazing_incidence else ())
     budget = point_budget(luminance_cd_m2=cap.luminance_cd_m2, u_luminance_cd_m2=u_roi,
                           u_noise_cd_m2=cap.u_noise_cd_m2, u_dark_cd_m2=cap.u_dark_cd_m2,
-                          u_texture_cd_m2=u_texture, u_lobe_cd_m2=cap.u_lobe_cd_m2,
+                          u_texture_cd_m2=u_texture, u_lobe_cd_m2=u_lobe,
                           lobe_angle_u_rel=u_angle_lobe_point,
                           lobe_angle_shared_u_rel=float(np.sqrt(max(u_angle_lobe ** 2 - u_angle_lobe_point ** 2, 0.0))),
                           calibration_u_rel=constants.calibration_u_rel,
@@ -108,28 +109,39 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
     }
 
 
-def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float]:
-    """The point's texture u (cd/m²) without the static grain's part common to the campaign, and that part.
+def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float, float]:
+    """The point's texture u (cd/m²) without the static grain's part common to the campaign, that part, and the
+    lobe correction's u.
 
     The point's pattern joins the run's estimates first. Its texture is its independent-block variance times
     the run's pooled inflation for its footprint (the neighbouring blocks' correlation, rig.physics.
     block_correlation), less the noise; while too few views were seen, the ROI's own block u. That block
     variance (relative) joins the static grain's estimate; the part the campaign's mean static error takes with
     it (`common_variance`), at most the whole texture, leaves the point's own u. Before the estimate has its
-    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
+    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves.
+
+    Where the lobe is corrected, the centre value weighs the blocks by `lobe_weights`, not evenly: what that adds
+    to the texture's variance, with the same pooled covariances, is the lobe correction's u (else the capture's)."""
     cap, grid = m.capture, grid_map(m.motors_deg)
     if cap.roi_pattern is None or not usable(grid) or cap.luminance_cd_m2 <= 0:
-        return cap.u_texture_cd_m2, 0.0
+        return cap.u_texture_cd_m2, 0.0, cap.u_lobe_cd_m2
     lum_sq, area = cap.luminance_cd_m2 ** 2, abs(float(np.linalg.det(grid)))
-    texture.blocks.observe(m.point.point_id, cap.roi_pattern, area)
-    inflation = texture.blocks.inflation(area)
+    corrected = cap.lobe_weights is not None
+    texture.blocks.observe(m.point.point_id, cap.roi_pattern, area, quadratic=corrected)
+    shape = cap.roi_pattern.shape
+    inflation = texture.blocks.inflation(area, shape)
+    independent = mean_variances(cap.roi_pattern, quadratic=corrected)[1]
     texture_sq = cap.u_texture_cd_m2 ** 2 if inflation is None else max(
-        mean_variances(cap.roi_pattern)[1] * inflation * lum_sq - cap.u_noise_cd_m2 ** 2, 0.0)
+        independent * inflation * lum_sq - cap.u_noise_cd_m2 ** 2, 0.0)
+    centre = None if cap.lobe_weights is None or inflation is None else texture.blocks.weighted_variance(
+        area, cap.lobe_weights)
+    lobe_sq = cap.u_lobe_cd_m2 ** 2 if centre is None or inflation is None else max(
+        independent * (centre * cap.roi_pattern.size - inflation), 0.0) * lum_sq
     texture.observe(m.point.point_id, cap.roi_pattern, grid, half_vector(
         float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
         float(m.angles.phi_o_deg)), (cap.u_noise_cd_m2 ** 2 + texture_sq) / lum_sq)
     common_sq = min(texture.common_variance(m.point.point_id, grid) * lum_sq, texture_sq)
-    return float(np.sqrt(texture_sq - common_sq)), float(np.sqrt(common_sq))
+    return float(np.sqrt(texture_sq - common_sq)), float(np.sqrt(common_sq)), float(np.sqrt(lobe_sq))
 
 
 def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:

@@ -176,7 +176,6 @@ class SimulationConfig(StrictModel):
     drift_per_hour: float = Field(-0.002, ge=-0.1, le=0.1)       # slow ageing drift after warm-up
     meter_noise_rel: Rel = 0.002
     positioning_sigma_deg: float = Field(0.003, ge=0, le=10)     # repeatability of a move
-    encoder_resolution_deg: float = Field(0.001, gt=0, le=1)
     dark_current_e_s: float = Field(20.0, ge=0, le=1e9)
     dsnu_e_s: float = Field(2.0, ge=0, le=1e9)                   # pixel-to-pixel dark-current spread
     prnu_rel: Rel = 0.005                                        # pixel-to-pixel gain spread
@@ -379,7 +378,15 @@ def load_rig_config(path: str | Path) -> RigConfig:
     return config.model_copy(update={"camera": camera})
 
 
+#: The simulated axes' read-back u: their drives count 1000 steps per degree (devices.*.steps_per_degree) and an
+#: encoder reads the load's position to ±½ step, a uniform error of 0.001°/√12. What a lab states from its encoders'
+#: resolution and interpolation error (the default, 0.002°, is a typical real one); stated 7× too wide, it made a
+#: glossy sample's lobe-angle term the largest of its point-to-point u (issue 34).
+SIMULATED_READBACK_U_DEG = 0.0003
+
+
 def simulated_rig() -> RigConfig:
     """The built-in simulated rig (`rig run` without `--rig`; campaigns/rigs/simulated.yaml spells it out):
-    the defaults, plus a filter wheel (SIMULATED_FILTERS)."""
-    return RigConfig(devices=DevicesConfig(attenuator=AttenuatorDevice()), attenuator=SIMULATED_FILTERS)
+    the defaults, plus a filter wheel (SIMULATED_FILTERS) and the simulated encoders' read-back u."""
+    return RigConfig(devices=DevicesConfig(attenuator=AttenuatorDevice()), attenuator=SIMULATED_FILTERS,
+                     geometry=GeometryConfig(readback_u_deg=SIMULATED_READBACK_U_DEG))

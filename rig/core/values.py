@@ -157,7 +157,7 @@ class PointCapture:
     u_rel_attenuation: float = 0.0
     #: The BRDF lobe's curvature over the ROI's angular footprint (rig.physics.footprint), where the fit
     #: resolves it (else 0): the relative bias of the ROI mean against the value at the ROI centre, which
-    #: the luminance is corrected to; that correction's standard uncertainty (in u_luminance_cd_m2 too);
+    #: the luminance is corrected to; what that correction adds to the texture's u (in u_luminance_cd_m2 too);
     #: the lobe's half-width over the ROI's half-diagonal, i.e. in units of the view footprint; and its
     #: log-slope |∇ ln f| at the ROI centre per footprint (how much an angle error moves the value).
     lobe_bias_rel: float = 0.0
@@ -167,3 +167,6 @@ class PointCapture:
     #: The ROI's block pattern (rig.physics.roi.RoiStats.pattern): how the point's texture u splits into the static
     #: grain shared with other views and the rest (rig.physics.static_texture); None where there is none.
     roi_pattern: np.ndarray | None = None
+    #: Where the lobe is corrected, the centre value's weights on the ROI's log block means (rig.physics.
+    #: footprint.centre_weights): how its texture, the block correlation pooled, reaches the value. Else None.
+    lobe_weights: np.ndarray | None = None

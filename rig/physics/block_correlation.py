@@ -49,16 +49,18 @@ MIN_SIDE_BLOCKS = 3
 
 
 @functools.lru_cache(maxsize=8)
-def _moments(rows: int, cols: int) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray]:
+def _moments(rows: int, cols: int, quadratic: bool = False) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray]:
     """The lag matrices K₀, K₁, K₂ of a rows × cols grid (row-major), the moment matrix tr(K_a M K_b M) and
-    1ᵀK_b 1 / n² (what each c_b adds to the variance of the mean)."""
+    1ᵀK_b 1 / n² (what each c_b adds to the variance of the mean). M takes out a plane, or with `quadratic` a
+    quadratic surface: what a corrected lobe's pattern is the residual of (rig.physics.roi)."""
     def neighbours(k: int) -> np.ndarray:
         return np.eye(k, k=1) + np.eye(k, k=-1)
     eye_r, eye_c = np.eye(rows), np.eye(cols)
     lags = (np.eye(rows * cols), np.kron(eye_r, neighbours(cols)) + np.kron(neighbours(rows), eye_c),
             np.kron(neighbours(rows), neighbours(cols)))
     y, x = np.mgrid[0:rows, 0:cols]
-    design = np.stack([np.ones(rows * cols), x.ravel() - x.mean(), y.ravel() - y.mean()], axis=1)
+    xc, yc = x.ravel() - x.mean(), y.ravel() - y.mean()
+    design = np.stack([np.ones(rows * cols), xc, yc, *((xc * xc, xc * yc, yc * yc) if quadratic else ())], axis=1)
     residual = np.eye(rows * cols) - design @ np.linalg.pinv(design)
     moment = np.array([[np.trace(ka @ residual @ kb @ residual) for kb in lags] for ka in lags])
     weights = np.array([kb.sum() for kb in lags]) / (rows * cols) ** 2
@@ -67,17 +69,34 @@ def _moments(rows: int, cols: int) -> tuple[tuple[np.ndarray, ...], np.ndarray, 
     return lags, moment, weights
 
 
-def mean_variances(pattern: np.ndarray) -> tuple[float, float]:
-    """The variance of the mean of the blocks whose pattern (about their plane) this is: with the neighbours'
-    covariance from the moments (module docstring; may come out below the next) and with independent blocks."""
+def _covariances(pattern: np.ndarray, quadratic: bool = False) -> tuple[np.ndarray, float]:
+    """The pattern's lag covariances (c₀, c₁, c₂) by the moments (module docstring) and its independent-block
+    variance c₀' (what c₀ would be with no correlation); with too few blocks a side, (c₀', 0, 0). `quadratic`:
+    the pattern is the residual of a quadratic surface, not of a plane (a corrected lobe's)."""
     rows, cols = pattern.shape
-    lags, moment, weights = _moments(rows, cols)
+    lags, moment, _ = _moments(rows, cols, quadratic)
     p = pattern.ravel()
     q = np.array([p @ k @ p for k in lags])
-    independent = float(q[0] / moment[0, 0] * weights[0])
+    independent = float(q[0] / moment[0, 0])
     if min(rows, cols) < MIN_SIDE_BLOCKS:
-        return independent, independent
-    return float(np.linalg.solve(moment, q) @ weights), independent
+        return np.array([independent, 0.0, 0.0]), independent
+    return np.linalg.solve(moment, q), independent
+
+
+def mean_variances(pattern: np.ndarray, quadratic: bool = False) -> tuple[float, float]:
+    """The variance of the mean of the blocks whose pattern (about their plane, or their quadratic) this is: with
+    the neighbours' covariance from the moments (module docstring; may come out below the next) and with
+    independent blocks."""
+    covariances, independent = _covariances(pattern, quadratic)
+    weights = _moments(*pattern.shape)[2]
+    return float(covariances @ weights), independent * float(weights[0])
+
+
+def _weighted_variance(covariances: np.ndarray, weights: np.ndarray) -> float:
+    """Var(Σ weights·blocks) for blocks whose lag covariances are `covariances` (c₀, c₁, c₂)."""
+    lags = _moments(*weights.shape)[0]
+    v = weights.ravel()
+    return float(sum(c * (v @ k @ v) for c, k in zip(covariances, lags)))
 
 
 def _area_class(area: float) -> int:
@@ -85,31 +104,45 @@ def _area_class(area: float) -> int:
 
 
 class BlockCorrelation:
-    """The run's variance inflation of the ROI mean by footprint class, from the views seen so far (`observe`)."""
+    """The run's block covariances by footprint class, from the views seen so far (`observe`): the variance
+    inflation of the ROI mean (`inflation`) and of any weighted sum of its blocks (`weighted_variance`)."""
 
     def __init__(self) -> None:
-        self._sums = np.zeros((len(AREA_EDGES) + 1, 2))        # per class: Σ Var(mean), Σ independent
+        self._sums = np.zeros((len(AREA_EDGES) + 1, 4))        # per class: Σ c₀, Σ c₁, Σ c₂, Σ c₀'
         self._counts = np.zeros(len(AREA_EDGES) + 1, int)
         self._seen: set[str] = set()
 
-    def observe(self, point_id: str, pattern: np.ndarray, area: float) -> None:
-        """Add a view's pattern and its footprint's area (over the normal view's); a view seen before is not
-        added again (its row is built again once E⊥ brackets it)."""
+    def observe(self, point_id: str, pattern: np.ndarray, area: float, quadratic: bool = False) -> None:
+        """Add a view's pattern (`quadratic`: about a corrected lobe's quadratic) and its footprint's area (over
+        the normal view's); a view seen before is not added again (its row is built again once E⊥ brackets it)."""
         if point_id in self._seen:
             return
         self._seen.add(point_id)
         k = _area_class(area)
-        self._sums[k] += mean_variances(pattern)
+        covariances, independent = _covariances(pattern, quadratic)
+        self._sums[k] += (*covariances, independent)
         self._counts[k] += 1
 
-    def inflation(self, area: float) -> float | None:
-        """Var(ROI mean) over the independent-block variance for a footprint of this area (at least 1: the
-        neighbours' covariance may only widen u); None while too few views were seen."""
+    def _pooled(self, area: float) -> np.ndarray | None:
+        """Σ (c₀, c₁, c₂, c₀') of the footprint's class, of the run's views while it has too few, or None."""
         k = _area_class(area)
         if self._counts[k] >= MIN_VIEWS:
-            sums = self._sums[k]
-        elif self._counts.sum() >= MIN_VIEWS:
-            sums = self._sums.sum(axis=0)
-        else:
+            return self._sums[k]
+        if self._counts.sum() >= MIN_VIEWS:
+            return self._sums.sum(axis=0)
+        return None
+
+    def weighted_variance(self, area: float, weights: np.ndarray) -> float | None:
+        """Var(Σ weights·blocks) for a footprint of this area, in units of a block's independent variance c₀'
+        (the pooled covariances over the pooled c₀'); None while too few views were seen."""
+        sums = self._pooled(area)
+        if sums is None:
             return None
-        return max(float(sums[0] / sums[1]), 1.0) if sums[1] > 0 else 1.0
+        return _weighted_variance(sums[:3], weights) / sums[3] if sums[3] > 0 else float(np.sum(weights ** 2))
+
+    def inflation(self, area: float, shape: tuple[int, int] = (7, 7)) -> float | None:
+        """Var(ROI mean) over the independent-block variance for a footprint of this area and ROI of `shape`
+        blocks (at least 1: the neighbours' covariance may only widen u); None while too few views were seen."""
+        n = shape[0] * shape[1]
+        ratio = self.weighted_variance(area, np.full(shape, 1.0 / n))
+        return None if ratio is None else max(ratio * n, 1.0)

@@ -16,9 +16,10 @@ and the difference of the two squares is the texture's share.
 
 On a steep glossy lobe the ROI mean is not the value at the ROI centre: its pixels see the sample
 from directions up to the footprint apart (rig.physics.footprint). A quadratic fit of the log block
-means estimates that bias; where it is resolved, the mean is corrected to the centre value, the bias's
-uncertainty becomes its own component (u_lobe), and the texture is the spread of the block means
-about the fitted lobe rather than about their mean (which would count the lobe as texture). Where it is
+means estimates that bias; where it is resolved, the mean is corrected to the centre value and the texture is
+the spread of the block means about the fitted lobe rather than about their mean (which would count the lobe
+as texture). The corrected value weighs the blocks unevenly (rig.physics.footprint.centre_weights: the fitted
+surface at the centre): what that adds to the texture's variance of an even mean is its own component (u_lobe). Where it is
 not resolved the texture is the spread about the block means' plane (a slope averages out of the mean);
 on a clear slope the lobe's curvature still biases the mean, by about the bias the fit estimates, which
 is then u_lobe (no correction applied): a kink or a curved flank within the footprint (issue 34).
@@ -51,7 +52,9 @@ class RoiStats:
     n: int                 # pixels
     n_blocks: int          # whole blocks used for u_mean
     lobe: LobeFit = NO_LOBE  # the fit of the block means' curvature (rig.physics.footprint)
-    u_lobe: float = 0.0    # standard uncertainty of the lobe correction, or the bias left uncorrected (below)
+    #: What correcting the lobe adds to u_mean (the texture through the centre weights, in quadrature), or the
+    #: bias left uncorrected on a clear flank (below)
+    u_lobe: float = 0.0
     corrected: bool = False  # the mean is corrected to the ROI centre for the lobe (the fit resolves it)
     #: The block means about their plane (about the lobe where corrected) over their mean, (rows, cols): what the
     #: texture u is the spread of, kept so that views of the same sample area can be compared (rig.physics.
@@ -76,6 +79,12 @@ class RoiStats:
     def lobe_slope_rel(self) -> float:
         """The corrected lobe's log-slope at the ROI centre per footprint; 0 when not corrected."""
         return self.lobe.slope_rel if self.corrected else 0.0
+
+    @property
+    def centre_weights(self) -> np.ndarray | None:
+        """The corrected centre value's weights on the log block means (rig.physics.footprint.centre_weights);
+        None when not corrected."""
+        return self.lobe.centre_weights if self.corrected else None
 
     @property
     def lobe_width_rel(self) -> float:
@@ -115,20 +124,24 @@ def _about_plane(means: np.ndarray) -> tuple[np.ndarray, int, float]:
     return dev, n - 3, explained / 2 / (res / (n - 3)) if res > 0 else (np.inf if explained > 0 else 0.0)
 
 
-def u_mean_of_blocks(means: np.ndarray) -> float:
-    """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included.
+def u_mean_of_blocks(means: np.ndarray, weights: np.ndarray | None = None, fitted: int = 3) -> float:
+    """Standard uncertainty of the mean of a grid of block means, neighbours' covariance included; with
+    `weights` (rows, cols), of the weighted sum Σ weights·means instead (a corrected lobe's centre value).
 
     The spread is taken about the least-squares plane through the block means, not about their mean: a
     linear trend across the ROI is the BRDF's slope over the view footprint (a lobe's flank), which the
     ROI mean averages out exactly (the ROI is symmetric about its centre, whose direction the row's angles
     are), so it is no error of the mean; counted as texture it widened u on every sloped point (issue 34).
-    The plane's three parameters are taken out of the degrees of freedom."""
+    The plane's three parameters are taken out of the degrees of freedom; `fitted`: the parameters fitted to
+    `means` before (6 for block means flattened by a lobe's quadratic)."""
     dev, dof, _ = _about_plane(means)
-    n = means.size
+    dof -= fitted - 3
+    v = np.full(means.shape, 1.0 / means.size) if weights is None else weights
     var = float(np.sum(dev ** 2)) / dof
     products = np.concatenate([(dev[:, :-1] * dev[:, 1:]).ravel(), (dev[:-1, :] * dev[1:, :]).ravel()])
     cov = float(np.clip(products.mean(), 0.0, var)) if products.size else 0.0
-    return float(np.sqrt((n * var + 2 * products.size * cov) / n ** 2))
+    neighbours = float(np.sum(v[:, :-1] * v[:, 1:]) + np.sum(v[:-1, :] * v[1:, :]))
+    return float(np.sqrt(max(var * float(np.sum(v ** 2)) + 2 * cov * neighbours, 0.0)))
 
 
 def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOCK_PX) -> RoiStats:
@@ -165,10 +178,13 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
     # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
     scale = 1.0 / (1.0 + lobe.bias_rel)
     flattened = means / lobe.trend
-    return RoiStats(mean=mean * scale, u_mean=u_mean_of_blocks(flattened) * scale,
+    u_mean = u_mean_of_blocks(flattened, fitted=6)
+    u_centre = u_mean_of_blocks(flattened, lobe.centre_weights, fitted=6)
+    return RoiStats(mean=mean * scale, u_mean=u_mean * scale,
                     u_mean_noise=mean_noise(variance) * scale, std=float(image.std(ddof=1)), n=n,
-                    n_blocks=int(means.size), lobe=lobe, u_lobe=mean * scale * lobe.u_bias_rel * scale, corrected=True,
-                    pattern=_about_plane(flattened)[0] / float(flattened.mean()))
+                    n_blocks=int(means.size), lobe=lobe,
+                    u_lobe=float(np.sqrt(max(u_centre ** 2 - u_mean ** 2, 0.0))) * scale,
+                    corrected=True, pattern=_about_plane(flattened)[0] / float(flattened.mean()))
 
 
 def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:

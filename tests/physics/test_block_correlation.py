@@ -50,7 +50,8 @@ def measurement(k: int, image: np.ndarray) -> Measurement:
         luminance_cd_m2=stats.mean, u_luminance_cd_m2=stats.u_mean, roi_std_cd_m2=stats.std, exposures_s=(0.01,),
         saturated_fraction=0.0, flags=(), image_cd_m2=None, roi_window=Window(0, 0, ROI, ROI), n_frames=1,
         u_noise_cd_m2=0.0, u_dark_cd_m2=0.0, u_texture_cd_m2=stats.u_texture, capture_time_s=0.01, n_darks=1,
-        roi_pattern=stats.pattern)
+        roi_pattern=stats.pattern, u_lobe_cd_m2=stats.u_lobe, lobe_weights=stats.centre_weights,
+        lobe_bias_rel=stats.lobe_bias_rel)
     motors = (-30.0, 0.0, 50.0, -90.0)                  # geometry.inverse_deg(30, 0, 10, 180)
     point = PlannedPoint(f"s0-p{k}", 0, 30.0, 0.0, 10.0, 180.0, motors)
     angles = BrdfAngles(np.float64(30.0), np.float64(0.0), np.float64(10.0), np.float64(180.0))
@@ -94,3 +95,49 @@ def test_the_smallest_rois_give_a_finite_variance(shape):
     assert math.isfinite(correlated) and math.isfinite(independent) and independent > 0
     if min(shape) < 3:
         assert correlated == pytest.approx(independent, rel=1e-12)
+
+
+def test_weighted_sums_of_blocks_take_the_pooled_covariances():
+    """Var(Σ v·blocks) in units of a block's independent variance: Σ v² for independent blocks; for blocks
+    sharing an edge-neighbour covariance ρ, Σ v² + ρ vᵀK₁v, which a sign-changing v (a lobe's centre weights)
+    makes smaller than the even mean's."""
+    rng = np.random.default_rng(11)
+    independent, correlated = BlockCorrelation(), BlockCorrelation()
+    rows = cols = 7
+    for k in range(400):
+        white = rng.standard_normal((rows + 1, cols + 1))
+        independent.observe(str(k), roi_statistics(np.kron(1 + 0.01 * white[:rows, :cols], np.ones((10, 10))),
+                                                    np.zeros((70, 70))).pattern, 1.0)
+        shared = white[:rows, :cols] + white[1:, :cols] + white[:rows, 1:] + white[1:, 1:]  # 2 × 2 sums: ρ₁ ½, ρ₂ ¼
+        correlated.observe(str(k), roi_statistics(np.kron(1 + 0.005 * shared, np.ones((10, 10))),
+                                                  np.zeros((70, 70))).pattern, 1.0)
+    even = np.full((rows, cols), 1.0 / 49)
+    alternating = np.fromfunction(lambda r, c: (-1.0) ** (r + c), (rows, cols)) / 49
+    for v in (even, alternating):
+        assert independent.weighted_variance(1.0, v) == pytest.approx(np.sum(v ** 2), rel=0.15)
+    assert correlated.weighted_variance(1.0, even) / np.sum(even ** 2) > 3.0
+    assert correlated.weighted_variance(1.0, alternating) / np.sum(alternating ** 2) < 0.5
+    assert BlockCorrelation().weighted_variance(1.0, even) is None
+
+
+def test_a_corrected_lobes_centre_value_takes_the_pooled_covariances_through_its_weights():
+    """On a narrow lobe (σ 15 px) corrected to its centre value, the texture reaches that value through the
+    centre weights (rig.physics.footprint.centre_weights), about twice what it gives the plain ROI mean; with
+    the run's pooled block covariances the stated u (texture ⊕ lobe) matches the centre values' true scatter."""
+    rng = np.random.default_rng(15)
+    c = np.arange(ROI) + 0.5 - ROI / 2
+    x, y = np.meshgrid(c, c)
+    run, errors, u, u_texture = StaticTexture(), [], [], []
+    for k in range(150):
+        dx, dy = rng.uniform(-15.0, 15.0, 2)
+        lobe = np.exp(-((x - dx) ** 2 + (y - dy) ** 2) / (2 * 15.0 ** 2))
+        m = measurement(k, L * lobe * texture(rng))
+        own_texture, _, own_lobe = texture_split(m, run)
+        if k >= MIN_VIEWS and m.capture.lobe_weights is not None:
+            errors.append(m.capture.luminance_cd_m2 / (L * math.exp(-(dx * dx + dy * dy) / (2 * 15.0 ** 2))) - 1)
+            u.append(math.hypot(own_texture, own_lobe) / m.capture.luminance_cd_m2)
+            u_texture.append(own_texture / m.capture.luminance_cd_m2)
+    errors, u = np.array(errors), np.array(u)
+    assert errors.size > 100
+    assert np.sqrt(np.mean(errors ** 2)) / np.sqrt(np.mean(u ** 2)) == pytest.approx(1.0, abs=0.15)
+    assert np.sqrt(np.mean(errors ** 2)) > 1.5 * np.sqrt(np.mean(np.square(u_texture)))

@@ -81,3 +81,46 @@ def test_unfittable_rois_give_no_lobe():
     dark = np.ones((7, 7))
     dark[3, 3] = 0.0
     assert fit_lobe(dark, 10, (70, 70)).bias_rel == 0.0
+
+
+def _corrected_errors(sigma_px: float, seed: int, trials: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """Relative errors of the lobe-corrected centre value and their stated u (texture ⊕ lobe correction), for a
+    Gaussian lobe at random offsets under a texture of independent 2 % blocks (its truth: the lobe's centre value)."""
+    rng = np.random.default_rng(seed)
+    errors, u = [], []
+    for _ in range(trials):
+        offset = rng.uniform(-1.5, 1.5, 2) * min(sigma_px, ROI_PX / 2)
+        lobe = gaussian_lobe(sigma_px, tuple(offset))
+        centre = math.exp(-(offset @ offset) / (2 * sigma_px ** 2))
+        blocks = np.exp(rng.normal(0.0, 0.02, (7, 7)))
+        stats = roi_statistics(100.0 * lobe * np.kron(blocks, np.ones((10, 10))), np.full(lobe.shape, 1e-6))
+        if stats.corrected:
+            errors.append(stats.mean / (100.0 * centre) - 1)
+            u.append(math.hypot(stats.u_mean, stats.u_lobe) / stats.mean)
+    return np.array(errors), np.array(u)
+
+
+@pytest.mark.parametrize("sigma_px", [15.0, 35.0, 70.0])
+def test_corrected_centre_value_u_is_honest_from_narrow_to_broad_lobes(sigma_px):
+    """The ROI mean's texture error and the bias's move together (footprint.centre_weights): counted apart, a
+    lobe narrower than the footprint had twice its u; and block means flattened without the within-block excess
+    kept several per cent of lobe as texture. z = error / u has std ≈ 1 at every width."""
+    errors, u = _corrected_errors(sigma_px, seed=int(sigma_px))
+    assert errors.size > 200
+    assert 0.85 < np.std(errors / u) < 1.2
+    assert np.sqrt(np.mean(errors ** 2)) > 1.5 * 0.02 / 7      # the centre costs more than the plain mean would
+
+
+def test_centre_weights_are_the_corrected_values_linear_response():
+    """A small texture δ (in log, per block) moves the corrected centre value by L·δ, L = centre_weights;
+    L sums to 1 (a uniform gain moves the value by itself); for a flat ROI L is the quadratic's intercept row."""
+    image = 100.0 * gaussian_lobe(25.0, (20.0, -10.0))
+    base = roi_statistics(image, np.full(image.shape, 1e-6))
+    weights = base.centre_weights
+    assert weights is not None and float(np.sum(weights)) == pytest.approx(1.0, abs=1e-9)
+    delta = 1e-4 * np.random.default_rng(5).standard_normal((7, 7))
+    moved = roi_statistics(image * np.kron(np.exp(delta), np.ones((10, 10))), np.full(image.shape, 1e-6))
+    assert moved.mean / base.mean - 1 == pytest.approx(float(np.sum(weights * delta)), abs=2e-6)
+    flat = fit_lobe(np.ones((7, 7)) + 0.0, 10, (ROI_PX, ROI_PX))
+    assert flat.centre_weights is not None
+    assert float(np.sum(flat.centre_weights ** 2)) * 49 == pytest.approx(3.667, abs=0.01)
