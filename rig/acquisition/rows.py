@@ -128,8 +128,7 @@ def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float,
     lum_sq, area = cap.luminance_cd_m2 ** 2, abs(float(np.linalg.det(grid)))
     corrected = cap.lobe_weights is not None
     texture.blocks.observe(m.point.point_id, cap.roi_pattern, area, quadratic=corrected)
-    shape = cap.roi_pattern.shape
-    inflation = texture.blocks.inflation(area, shape)
+    inflation = texture.blocks.inflation(area, cap.roi_pattern.shape)
     independent = mean_variances(cap.roi_pattern, quadratic=corrected)[1]
     texture_sq = cap.u_texture_cd_m2 ** 2 if inflation is None else max(
         independent * inflation * lum_sq - cap.u_noise_cd_m2 ** 2, 0.0)

@@ -22,6 +22,7 @@ from rig.simulators.delta_sm_scpi import header_matches
 from rig.simulators.world import SimWorld
 
 FAST = 0.2                     # s; fault tests wait out this timeout per lost reply
+PATIENT = 10.0                 # s; drivers no test loses a reply to
 ATTEMPTS = 2
 WATCHDOG_S = 10.0
 #: The rig file's lamp settings the driver gets (the peer is a 15 V / 10 A supply).
@@ -245,8 +246,9 @@ def test_peer_stop_is_idempotent_and_refuses_unknown_faults():
 # -- the watchdog, end to end ------------------------------------------------------------------------
 @pytest.fixture
 def guarded(peer, world, lamp):
-    """A second driver with a 0.5 s watchdog (the shared one is closed at the module's end)."""
-    guarded = DeltaSM(peer.url, clock=world.clock, timeout_s=FAST, **(OPTIONS | dict(watchdog_s=0.5)))
+    """A second driver with a 0.5 s watchdog (the shared one is closed at the module's end). No reply is lost to
+    it, so it waits as long as a loaded machine may take to answer: a retry after FAST would be an event of its own."""
+    guarded = DeltaSM(peer.url, clock=world.clock, timeout_s=PATIENT, **(OPTIONS | dict(watchdog_s=0.5)))
     yield guarded
     guarded.close()
 
