@@ -11,14 +11,15 @@ it is high (the lobe is convex in log and the mean of an exponential exceeds the
 mean). The lamp beam is collimated (rig.physics.optics): one incident direction lights the whole
 spot, so the illumination footprint is 0 and only the view directions are averaged.
 
-The bias is estimated from the data: log(block means) of the ROI, a smooth surface in the block
-position, is fitted by a quadratic; a Gaussian-like lobe is exactly quadratic in log, and the view
-direction is (to first order) linear in the pixel position. The ROI mean of the fitted surface over
-its value at the ROI centre gives the relative bias (its fit covariance says whether it is resolved), the
-fit's residual spread is the texture (which reaches the corrected value through `centre_weights`), and the curvature gives the lobe's width in pixels, hence in
-units of the footprint (`narrow_lobe` when the lobe is narrower than the footprint). The fitted slope
-at the centre says how fast the value changes with the view direction: on a lobe's flank an axis error
-of 0.01° moves a modified-Phong n = 10000 value by ~5 %, which rig.physics.budget turns into a component.
+The bias is estimated from the data: log(block means) of the ROI, a smooth surface in the block position, is
+fitted by a quadratic; a Gaussian-like lobe is exactly quadratic in log, and the view direction is (to first
+order) linear in the pixel position. The ROI mean of the fitted surface over its value at the ROI centre
+gives the relative bias (its fit covariance says whether it is resolved), the fit's residual spread is the
+texture (which reaches the corrected value through `centre_weights`), and the curvature gives the lobe's
+width in pixels, hence in units of the footprint (`narrow_lobe` when the lobe is narrower than the
+footprint). The fitted slope at the centre says how fast the value changes with the view direction: on a
+lobe's flank an axis error of 0.01° moves a modified-Phong n = 10000 value by ~5 %, which rig.physics.budget
+turns into a component.
 
 Texture (3 % grains, 10 % direction-dependent glints on the simulated sample) makes a fit on a flat
 ROI show spurious gradient and curvature. Correcting by such a noise-driven bias would only add

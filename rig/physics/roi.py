@@ -14,15 +14,16 @@ of their mean (clipped at zero: it may only widen the uncertainty). The propagat
 variance alone is reported next to it to show how much of the total is noise,
 and the difference of the two squares is the texture's share.
 
-On a steep glossy lobe the ROI mean is not the value at the ROI centre: its pixels see the sample
-from directions up to the footprint apart (rig.physics.footprint). A quadratic fit of the log block
-means estimates that bias; where it is resolved, the mean is corrected to the centre value and the texture is
-the spread of the block means about the fitted lobe rather than about their mean (which would count the lobe
-as texture). The corrected value weighs the blocks unevenly (rig.physics.footprint.centre_weights: the fitted
-surface at the centre): what that adds to the texture's variance of an even mean is its own component (u_lobe). Where it is
-not resolved the texture is the spread about the block means' plane (a slope averages out of the mean);
-on a clear slope the lobe's curvature still biases the mean, by about the bias the fit estimates, which
-is then u_lobe (no correction applied): a kink or a curved flank within the footprint (issue 34).
+On a steep glossy lobe the ROI mean is not the value at the ROI centre: its pixels see the sample from
+directions up to the footprint apart (rig.physics.footprint). A quadratic fit of the log block means
+estimates that bias; where it is resolved, the mean is corrected to the centre value and the texture is the
+spread of the block means about the fitted lobe rather than about their mean (which would count the lobe as
+texture). The corrected value weighs the blocks unevenly (rig.physics.footprint.centre_weights: the fitted
+surface at the centre): what that adds to the texture's variance of an even mean is its own component
+(u_lobe). Where it is not resolved the texture is the spread about the block means' plane (a slope averages
+out of the mean); on a clear slope the lobe's curvature still biases the mean, by about the bias the fit
+estimates, which is then u_lobe (no correction applied): a kink or a curved flank within the footprint
+(issue 34).
 
 A row does not take u_mean as it is: where the grain is about a block wide, neighbouring blocks correlate
 beyond what one ROI's edge covariance shows, so the row's texture is the ROI's independent-block variance
