@@ -82,9 +82,8 @@ class CalibratedAcquisition:
         else:
             saturated_fraction = image.overflow_fraction
         return PointCapture(
-            luminance_cd_m2=stats.mean,
+            **stats.capture_fields(),
             u_luminance_cd_m2=stats.u_luminance(self.calibration_u_rel),
-            roi_std_cd_m2=stats.std,
             exposures_s=image.exposures_s,
             saturated_fraction=saturated_fraction,
             flags=point_flags(stats, settings.min_snr, saturated_fraction > 0),
@@ -93,9 +92,6 @@ class CalibratedAcquisition:
             n_frames=self.n_frames,
             u_noise_cd_m2=0.0,
             u_dark_cd_m2=0.0,
-            u_texture_cd_m2=stats.u_texture,
-            u_lobe_cd_m2=stats.u_lobe, lobe_bias_rel=stats.lobe_bias_rel, lobe_width_rel=stats.lobe_width_rel,
-            lobe_slope_rel=stats.lobe_slope_rel, roi_pattern=stats.pattern, lobe_weights=stats.centre_weights,
             capture_time_s=self.capture_time_s,
             n_darks=0,
         )

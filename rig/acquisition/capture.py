@@ -201,9 +201,8 @@ class Acquisition:
         cal = calibration_of(sensor, self.roi)                           # cd/m² per DN/s, per pixel of the ROI
         stats = roi_statistics(merged.rate_dn_s * cal, merged.var_rate * cal ** 2)
         return PointCapture(
-            luminance_cd_m2=stats.mean,
+            **stats.capture_fields(),
             u_luminance_cd_m2=stats.u_luminance(sensor.calibration_u_rel),
-            roi_std_cd_m2=stats.std,
             exposures_s=self.exposures_s,
             saturated_fraction=float(np.mean(merged.saturated)),
             flags=point_flags(stats, settings.min_snr, bool(np.any(merged.clipped))),
@@ -212,12 +211,6 @@ class Acquisition:
             n_frames=self.n_frames,
             u_noise_cd_m2=stats.u_mean_noise,
             u_dark_cd_m2=float(np.sqrt(var_dark) * cal.mean()),
-            u_texture_cd_m2=stats.u_texture,
-            u_lobe_cd_m2=stats.u_lobe,
-            lobe_bias_rel=stats.lobe_bias_rel,
-            lobe_width_rel=stats.lobe_width_rel,
-            lobe_slope_rel=stats.lobe_slope_rel,
-            roi_pattern=stats.pattern, lobe_weights=stats.centre_weights,
             capture_time_s=self.capture_time_s,
             n_darks=self.n_darks,
         )

@@ -33,6 +33,7 @@ times the neighbours' correlation pooled over the run's views (rig.physics.block
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +87,13 @@ class RoiStats:
         """The corrected centre value's weights on the log block means (rig.physics.footprint.centre_weights);
         None when not corrected."""
         return self.lobe.centre_weights if self.corrected else None
+
+    def capture_fields(self) -> dict[str, Any]:
+        """The fields of a point's capture record (rig.core.values.PointCapture) that the ROI gives, alike for
+        every camera: its value, spread, texture, lobe correction and block pattern."""
+        return dict(luminance_cd_m2=self.mean, roi_std_cd_m2=self.std, u_texture_cd_m2=self.u_texture,
+                    u_lobe_cd_m2=self.u_lobe, lobe_bias_rel=self.lobe_bias_rel, lobe_width_rel=self.lobe_width_rel,
+                    lobe_slope_rel=self.lobe_slope_rel, roi_pattern=self.pattern, lobe_weights=self.centre_weights)
 
     @property
     def lobe_width_rel(self) -> float:
