@@ -143,6 +143,10 @@ StepsPerDegree = Annotated[float, Field(gt=0, le=1e6)]
 DeviceId = Annotated[int, Field(ge=1, le=247)]
 
 
+
+#: A Modbus drive's steps per degree when the rig file gives none (the simulated rig's AZ drives).
+DRIVE_STEPS_PER_DEGREE = 1000.0
+
 class PositionerDevice(DeviceEntry):
     """Two axes (goniometer arm or sample stage); rig's own driver: two Modbus drives on one link, whose
     registers a drive map names (docs/modbus-drives.md)."""
@@ -157,7 +161,7 @@ class PositionerDevice(DeviceEntry):
     #: The Modbus device ids of the two axes' drives, in the positioner's axis order.
     device_ids: tuple[DeviceId, DeviceId] = (1, 2)
     #: Motor steps per degree of the axis (gearing × resolution): one for both axes, or one each.
-    steps_per_degree: StepsPerDegree | tuple[StepsPerDegree, StepsPerDegree] = 1000.0
+    steps_per_degree: StepsPerDegree | tuple[StepsPerDegree, StepsPerDegree] = DRIVE_STEPS_PER_DEGREE
     timeout_s: Seconds = 1.0
 
     @model_validator(mode="after")

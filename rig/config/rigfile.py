@@ -15,6 +15,7 @@ rig.devices.check_devices before connecting.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -24,7 +25,13 @@ from rig.config.camera_calibration import calibrated_sensor
 from rig.config.capture import MAX_EXPOSURE_S
 from rig.config.files import ConfigFileError, parse_model, printable, read_yaml
 from rig.config.geometry_calibration import GeometryConfig, calibrated_geometry
-from rig.config.rigdevices import POSITIONER_AXES, SERVED_CAMERA, AttenuatorDevice, DevicesConfig
+from rig.config.rigdevices import (
+    DRIVE_STEPS_PER_DEGREE,
+    POSITIONER_AXES,
+    SERVED_CAMERA,
+    AttenuatorDevice,
+    DevicesConfig,
+)
 from rig.config.stated_u import unstated_u
 from rig.config.strict import StrictModel
 from rig.config.zones import CollisionsConfig
@@ -378,11 +385,11 @@ def load_rig_config(path: str | Path) -> RigConfig:
     return config.model_copy(update={"camera": camera})
 
 
-#: The simulated axes' read-back u: their drives count 1000 steps per degree (devices.*.steps_per_degree) and an
-#: encoder reads the load's position to ±½ step, a uniform error of 0.001°/√12. What a lab states from its encoders'
-#: resolution and interpolation error (the default, 0.002°, is a typical real one); stated 7× too wide, it made a
-#: glossy sample's lobe-angle term the largest of its point-to-point u (issue 34).
-SIMULATED_READBACK_U_DEG = 0.0003
+#: The simulated axes' read-back u: an encoder reads the load's position to ±½ of its drive's step
+#: (DRIVE_STEPS_PER_DEGREE), a uniform error of one step/√12, 0.0003° as a rig file states it. What a lab states
+#: from its encoders' resolution and interpolation error (the default, 0.002°, is a typical real one); stated 7×
+#: too wide, it made a glossy sample's lobe-angle term the largest of its point-to-point u (issue 34).
+SIMULATED_READBACK_U_DEG = round(1.0 / DRIVE_STEPS_PER_DEGREE / math.sqrt(12.0), 4)
 
 
 def simulated_rig() -> RigConfig:

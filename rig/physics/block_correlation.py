@@ -140,7 +140,7 @@ class BlockCorrelation:
             return None
         return _weighted_variance(sums[:3], weights) / sums[3] if sums[3] > 0 else float(np.sum(weights ** 2))
 
-    def inflation(self, area: float, shape: tuple[int, int] = (7, 7)) -> float | None:
+    def inflation(self, area: float, shape: tuple[int, int]) -> float | None:
         """Var(ROI mean) over the independent-block variance for a footprint of this area and ROI of `shape`
         blocks (at least 1: the neighbours' covariance may only widen u); None while too few views were seen."""
         n = shape[0] * shape[1]

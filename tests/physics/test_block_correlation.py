@@ -79,9 +79,9 @@ def test_independent_blocks_are_not_inflated():
         blocks.observe(str(k), pattern, 1.0)
         correlated, independent = mean_variances(pattern)
         assert independent == pytest.approx(np.sum(pattern ** 2) / 46 / 49)
-    assert blocks.inflation(1.0) == pytest.approx(1.0, abs=0.05)
-    assert blocks.inflation(5.0) == blocks.inflation(1.0)         # no view of that class yet: the run's
-    assert BlockCorrelation().inflation(1.0) is None
+    assert blocks.inflation(1.0, (7, 7)) == pytest.approx(1.0, abs=0.05)
+    assert blocks.inflation(5.0, (7, 7)) == blocks.inflation(1.0, (7, 7))  # no view of that class yet: the run's
+    assert BlockCorrelation().inflation(1.0, (7, 7)) is None
 
 
 @pytest.mark.parametrize("shape", [(2, 2), (2, 5), (3, 2), (3, 3)])
@@ -95,6 +95,15 @@ def test_the_smallest_rois_give_a_finite_variance(shape):
     assert math.isfinite(correlated) and math.isfinite(independent) and independent > 0
     if min(shape) < 3:
         assert correlated == pytest.approx(independent, rel=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(3, 4), (4, 3), (4, 4), (3, 5)])
+def test_the_smallest_corrected_lobes_give_a_finite_variance(shape):
+    """A lobe is fitted from 3 × 4 blocks on (rig.physics.footprint): its pattern, the residual of a quadratic,
+    leaves the moments independent there too (the quadratic projector's moment matrix has full rank)."""
+    pattern = np.random.default_rng(2).standard_normal(shape)
+    correlated, independent = mean_variances(pattern, quadratic=True)
+    assert math.isfinite(correlated) and math.isfinite(independent) and independent > 0
 
 
 def test_weighted_sums_of_blocks_take_the_pooled_covariances():
