@@ -110,37 +110,41 @@ def brdf_row(m: Measurement, e_perp_lx: float, u_e_perp_lx: float, u_drift_lx: f
 
 
 def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float, float]:
-    """The point's texture u (cd/m²) without the static grain's part common to the campaign, that part, and the
-    lobe correction's u.
+    """The point's texture u (cd/m²) without its part common to the campaign, that part, and the lobe correction's
+    u without its share of that part.
 
     The point's pattern joins the run's estimates first. Its texture is its independent-block variance times
     the run's pooled inflation for its footprint (the neighbouring blocks' correlation, rig.physics.
-    block_correlation), less the noise; while too few views were seen, the ROI's own block u. That block
-    variance (relative) joins the static grain's estimate; the part the campaign's mean static error takes with
-    it (`common_variance`), at most the whole texture, leaves the point's own u. Before the estimate has its
-    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves.
+    block_correlation), less the noise; while too few views were seen, the ROI's own block u. Where the lobe is
+    corrected, the centre value weighs the blocks by `lobe_weights`, not evenly: what that adds to the texture's
+    variance, with the same pooled covariances, is the lobe correction's u (else the capture's).
 
-    Where the lobe is corrected, the centre value weighs the blocks by `lobe_weights`, not evenly: what that adds
-    to the texture's variance, with the same pooled covariances, is the lobe correction's u (else the capture's)."""
+    The block variance (relative) joins the static grain's estimate. The part of the whole (texture and lobe) that
+    the campaign's mean texture error takes with it (`common_variance`: the static grain's, and the glints views
+    of nearby half vectors share) leaves the texture's u first, then the lobe's. Before the estimate has its
+    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
     cap, grid = m.capture, grid_map(m.motors_deg)
     if cap.roi_pattern is None or not usable(grid) or cap.luminance_cd_m2 <= 0:
         return cap.u_texture_cd_m2, 0.0, cap.u_lobe_cd_m2
     lum_sq, area = cap.luminance_cd_m2 ** 2, abs(float(np.linalg.det(grid)))
-    corrected = cap.lobe_weights is not None
-    texture.blocks.observe(m.point.point_id, cap.roi_pattern, area, quadratic=corrected)
+    quadratic = cap.roi_pattern_quadratic
+    texture.blocks.observe(m.point.point_id, cap.roi_pattern, area, quadratic=quadratic)
     inflation = texture.blocks.inflation(area, cap.roi_pattern.shape)
-    independent = mean_variances(cap.roi_pattern, quadratic=corrected)[1]
+    independent = mean_variances(cap.roi_pattern, quadratic=quadratic)[1]
     texture_sq = cap.u_texture_cd_m2 ** 2 if inflation is None else max(
         independent * inflation * lum_sq - cap.u_noise_cd_m2 ** 2, 0.0)
     centre = None if cap.lobe_weights is None or inflation is None else texture.blocks.weighted_variance(
         area, cap.lobe_weights)
     lobe_sq = cap.u_lobe_cd_m2 ** 2 if centre is None or inflation is None else max(
         independent * (centre * cap.roi_pattern.size - inflation), 0.0) * lum_sq
-    texture.observe(m.point.point_id, cap.roi_pattern, grid, half_vector(
-        float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
-        float(m.angles.phi_o_deg)), (cap.u_noise_cd_m2 ** 2 + texture_sq) / lum_sq)
-    common_sq = min(texture.common_variance(m.point.point_id, grid) * lum_sq, texture_sq)
-    return float(np.sqrt(texture_sq - common_sq)), float(np.sqrt(common_sq)), float(np.sqrt(lobe_sq))
+    half = half_vector(float(m.angles.theta_i_deg), float(m.angles.phi_i_deg), float(m.angles.theta_o_deg),
+                       float(m.angles.phi_o_deg))
+    texture.observe(m.point.point_id, cap.roi_pattern, grid, half, (cap.u_noise_cd_m2 ** 2 + texture_sq) / lum_sq)
+    whole_sq = texture_sq + lobe_sq
+    common_sq = min(texture.common_variance(m.point.point_id, grid, half, whole_sq / lum_sq) * lum_sq, whole_sq)
+    lobe_common_sq = max(common_sq - texture_sq, 0.0)
+    return (float(np.sqrt(texture_sq - common_sq + lobe_common_sq)), float(np.sqrt(common_sq)),
+            float(np.sqrt(lobe_sq - lobe_common_sq)))
 
 
 def latest_row(m: Measurement, reading: IlluminanceEstimate, constants: RowConstants) -> dict[str, Any]:

@@ -167,6 +167,9 @@ class PointCapture:
     #: The ROI's block pattern (rig.physics.roi.RoiStats.pattern): how the point's texture u splits into the static
     #: grain shared with other views and the rest (rig.physics.static_texture); None where there is none.
     roi_pattern: np.ndarray | None = None
+    #: Whether that pattern is about the lobe fit's quadratic (else about the block means' plane): which residual
+    #: projector its covariances are estimated with (rig.physics.block_correlation).
+    roi_pattern_quadratic: bool = False
     #: Where the lobe is corrected, the centre value's weights on the ROI's log block means (rig.physics.
     #: footprint.centre_weights): how its texture, the block correlation pooled, reaches the value. Else None.
     lobe_weights: np.ndarray | None = None

@@ -25,7 +25,7 @@ BUDGET_COLUMNS = {
     "u_rel_noise": "camera shot and read noise of the ROI mean (HDR merge)",
     "u_rel_dark": "noise of the subtracted dark frame(s)",
     "u_rel_texture": "ROI non-uniformity: sample texture and glints (block means about the lobe, minus noise, "
-                     "their neighbours' correlation pooled over the run), less the static grain's part common to "
+                     "their neighbours' correlation pooled over the run), less its part common to "
                      "the campaign",
     "u_rel_lobe": "the lobe's curvature over the view footprint: its correction to the ROI centre, or on a clear "
                   "slope the bias the fit estimates but cannot resolve, left uncorrected",
@@ -39,7 +39,8 @@ BUDGET_COLUMNS = {
     "u_rel_angle_zero": "the axes' fixed zero errors (or the specular alignment's), through tan θi and a steep "
                         "lobe's slope, shared by every point",
     "u_rel_texture_static": "ROI texture: the sample's static grain, seen alike from every view of the same area, "
-                            "its part common to the campaign (rig.physics.static_texture)",
+                            "and the glints views of nearby half vectors share, their part common to the campaign "
+                            "(rig.physics.static_texture)",
 }
 #: Components that are one error for every point they serve: a calibration certificate's (camera, meter
 #: head) for the whole campaign, a filter's transmission for every point taken through that filter, the axes'
@@ -110,7 +111,7 @@ def point_budget(*, luminance_cd_m2: float, u_luminance_cd_m2: float, u_noise_cd
     taken out of the merge noise (u_noise² = u_frames² + u_dark²), and the drift and the meter's
     calibration (`u_meter_cal_lx`) out of u(E⊥), so that each appears once. The incidence angle's u
     (`angle_u_deg`) splits into its read-back part (`readback_u_deg`, None: all of it) and the fixed zero
-    errors' rest. `u_texture_static_cd_m2`: the static grain's part of the texture common to the campaign
+    errors' rest. `u_texture_static_cd_m2`: the texture's part common to the campaign (static grain, shared glints)
     (rig.physics.static_texture), apart from `u_texture_cd_m2`, the rest. On a steep lobe the view's angle errors
     split alike: `lobe_angle_u_rel` the read-back's part, `lobe_angle_shared_u_rel` the fixed offsets' (zeros or
     the specular alignment's error, `lobe_view_readback_u_deg`), which joins the zero errors' component.

@@ -43,6 +43,12 @@ from rig.physics.optics import CameraOptics, ray_directions
 #: uncertainties: the benchmark (benchmarks/footprint_study.py) shows that spurious curvature from texture
 #: stays below it on flat samples while real lobes of the issue's glossy sample pass it by far.
 RESOLVED_Z = 3.0
+#: An unresolved concave bias (the mean below the centre value: a peak) this many of its standard uncertainties
+#: from 0 is counted as u where the mean is left uncorrected, slope or no slope: at the peak of the issue's glossy
+#: lobe (modified Phong n = 3000) the ROI mean is 1.6–1.8 % below the centre value with u(bias) 0.6 %, short of
+#: RESOLVED_Z in about half the views, and with no slope it went uncounted (those views' z averaged −2.9). A flat
+#: texture passes it in 0.6 % of views (Z ≤ −2.5 of a normal law).
+CURVED_Z = 2.5
 
 
 def view_footprint_deg(optics: CameraOptics, roi: Window) -> float:
@@ -78,6 +84,15 @@ class LobeFit:
     #: The corrected centre value's linear weights on the log block means (rows, cols; `centre_weights`): what
     #: the texture moves it by. None without a fit.
     centre_weights: np.ndarray | None = None
+    #: The log block means about the fitted surface (rows, cols): the texture, with the lobe's curvature out (a
+    #: flank's pattern about a plane keeps it, and the curvature is no texture). None without a fit.
+    residual: np.ndarray | None = None
+
+    @property
+    def curved(self) -> bool:
+        """Not resolved, but −bias ≥ CURVED_Z · u(bias): a peak's curvature the fit sees (no slope shows it) but does
+        not correct; its bias is left in the mean and counted as u (rig.physics.roi)."""
+        return not self.resolved and -self.bias_rel >= CURVED_Z * self.u_bias_rel > 0
 
     @property
     def narrow(self) -> bool:
@@ -170,7 +185,7 @@ def fit_lobe(means: np.ndarray, block_px: int, roi_shape: tuple[int, int]) -> Lo
     return LobeFit(bias_rel=bias, u_bias_rel=u_bias, resolved=abs(bias) >= RESOLVED_Z * u_bias,
                    width_rel=width_rel, residual_rel=float(np.sqrt(float(res @ res) / dof)),
                    slope_rel=float(math.hypot(coef[1], coef[2])), trend=trend,
-                   centre_weights=centre_weights(lattice, trend))
+                   centre_weights=centre_weights(lattice, trend), residual=res.reshape(rows, cols))
 
 
 def centre_weights(lattice: _Lattice, trend: np.ndarray) -> np.ndarray:

@@ -17,6 +17,14 @@ point's static error sᵢ, what the campaign's mean static error s̄ (one shift 
 On the simulated rig (docs/uncertainty.md) the pair estimate gives 0.20–0.27 where the static factor, rendered
 apart, makes 0.23–0.28 of the block patterns' power, and the footprint overlap predicts the correlation of two
 views' static errors (0.30, 0.46, 0.72, 0.92 measured over 30 seeds for 0.3, 0.5, 0.7, 0.9 predicted).
+
+Glints are not every view's own, though: views whose half vectors lie within a degree or two see the same ones.
+The same-area pairs closer than GLINT_APART_DEG, binned by the half vectors' distance (GLINT_BINS_DEG), give
+what such views share beyond the static grain (`StaticTexture.glint_excess`); a view's covariance with the
+campaign's mean then takes that share of its whole texture variance over the views of each bin, as far as their
+footprints overlap. On the issue's glossy sample (modified Phong n = 3000, its lobe's views all within a degree
+of the normal's half vector) the pairs closer than 0.5° share 0.88 of their patterns, 0.5–1° 0.74, 1–2° 0.44,
+beyond 2° the static share (0.15).
 """
 
 from __future__ import annotations
@@ -31,6 +39,9 @@ SAME_AREA_BLOCKS = 0.3
 #: Two views' glints are unrelated when their half vectors are farther apart than this (degrees): the simulated
 #: sample's glints decorrelate within 4° of the half vector; a real one's is not known, so the margin is wide.
 GLINT_APART_DEG = 5.0
+#: Half-vector distances (deg) binning the same-area pairs that may share glints (up to GLINT_APART_DEG): what
+#: two views that close share beyond the static grain (`StaticTexture.glint_excess`).
+GLINT_BINS_DEG = (0.5, 1.0, 2.0, 3.5, GLINT_APART_DEG)
 #: Pairs of such views needed before the share is estimated; with fewer it is 0 (the texture stays point-to-point).
 MIN_PAIRS = 20
 #: Points per side of the grid that measures the overlap of two footprints.
@@ -81,11 +92,12 @@ class StaticTexture:
         self._seen: set[str] = set()
         self._common: dict[str, float] = {}
         self._shape: tuple[int, int] | None = None
-        self._cross = 0.0
-        self._power = 0.0
+        self._cross = np.zeros(len(GLINT_BINS_DEG) + 1)    # per half-vector bin; the last: glints apart
+        self._power = np.zeros(len(GLINT_BINS_DEG) + 1)
+        self._pairs = np.zeros(len(GLINT_BINS_DEG) + 1, int)
+        self._shared: dict[str, float] = {}
         self._block_area = 0.0                       # Σ block variance (relative) × footprint area
         self.n = 0
-        self.pairs = 0
         #: How the ROI's block means correlate, pooled over the run's views: the texture u a point's block
         #: variance is (rig.physics.block_correlation); the run's other texture state, kept with this one.
         self.blocks = BlockCorrelation()
@@ -109,11 +121,12 @@ class StaticTexture:
             dx, dy = d[:, :, 0] * cols / 2.0, d[:, :, 1] * rows / 2.0
             apart = np.sqrt(np.maximum(np.sum((dx + dy) ** 2, axis=1), np.sum((dx - dy) ** 2, axis=1)))
             glints = np.degrees(np.arccos(np.clip(self._halves[:n] @ half, -1.0, 1.0)))
-            pair = (apart < SAME_AREA_BLOCKS) & (glints > GLINT_APART_DEG)
-            others = self._patterns[:n][pair]
-            self._cross += float(np.sum(others @ p))
-            self._power += float(0.5 * (np.sum(others ** 2) + np.sum(pair) * (p @ p)))
-            self.pairs += int(np.sum(pair))
+            same = apart < SAME_AREA_BLOCKS
+            k = np.searchsorted(GLINT_BINS_DEG, glints[same])
+            others = self._patterns[:n][same]
+            np.add.at(self._cross, k, others @ p)
+            np.add.at(self._power, k, 0.5 * (np.sum(others ** 2, axis=1) + p @ p))
+            np.add.at(self._pairs, k, 1)
         if n == len(self._areas):                    # room for twice as many
             grow = max(2 * n, 64)
             self._patterns = _resized(self._patterns, grow)
@@ -125,32 +138,61 @@ class StaticTexture:
         self.n += 1
 
     @property
+    def pairs(self) -> int:
+        """Pairs of views on the same area whose glints differ: what the static share is estimated from."""
+        return int(self._pairs[-1])
+
+    @property
     def share(self) -> float:
         """The static grain's share of the ROI block variance, 0 until MIN_PAIRS pairs of views gave it."""
-        if self.pairs < MIN_PAIRS or self._power <= 0:
+        if self.pairs < MIN_PAIRS or self._power[-1] <= 0:
             return 0.0
-        return float(np.clip(self._cross / self._power, 0.0, 1.0))
+        return float(np.clip(self._cross[-1] / self._power[-1], 0.0, 1.0))
 
-    def common_variance(self, point_id: str, grid: np.ndarray) -> float:
-        """The relative variance of a view's static error that the campaign's mean static error takes with it:
-        σᵢ² − Var(sᵢ − s̄) = 2 Cov(sᵢ, s̄) − Var(s̄), at least 0 (module docstring), over the views seen so far.
+    def glint_excess(self) -> np.ndarray:
+        """Per bin of half-vector distance (GLINT_BINS_DEG): the share of the block variance two views on the same
+        area share beyond the static grain (their glints), 0 for a bin with fewer than MIN_PAIRS pairs."""
+        enough = (self._pairs[:-1] >= MIN_PAIRS) & (self._power[:-1] > 0)
+        ratio = np.divide(self._cross[:-1], self._power[:-1], out=np.zeros(len(GLINT_BINS_DEG)), where=enough)
+        return np.where(enough, np.clip(ratio - self.share, 0.0, 1.0), 0.0)
 
-        A grain much finer than the footprint gives a view's ROI mean a static variance σᵢ² = S/Aᵢ (Aᵢ its
-        footprint's area; S = share × the mean of block variance × area) and two views a covariance
-        S |Aᵢ ∩ Aⱼ| / (Aᵢ Aⱼ), so Cov(sᵢ, s̄) = σᵢ² · mean over j of |Aᵢ ∩ Aⱼ| / Aⱼ. A small footprint (a view
-        along the normal) has the largest static error and shares the least of it; a long one (a grazing view)
-        holds the others and shares nearly all of its small one. A view's overlap is taken once (its row is
-        built again once E⊥ brackets it), over at most MAX_VIEWS views spread over those seen."""
+    def common_variance(self, point_id: str, grid: np.ndarray, half: np.ndarray | None = None,
+                        own_rel_sq: float = 0.0) -> float:
+        """The relative variance of a view's texture error that the campaign's mean texture error takes with it:
+        σᵢ² − Var(tᵢ − t̄) = 2 Cov(tᵢ, t̄) − Var(t̄), at least 0 (module docstring), over the views seen so far.
+
+        The static grain: a grain much finer than the footprint gives a view's ROI mean a static variance
+        σᵢ² = S/Aᵢ (Aᵢ its footprint's area; S = share × the mean of block variance × area) and two views a
+        covariance S |Aᵢ ∩ Aⱼ| / (Aᵢ Aⱼ), so Cov(sᵢ, s̄) = σᵢ² · mean over j of |Aᵢ ∩ Aⱼ| / Aⱼ. A small footprint
+        (a view along the normal) has the largest static error and shares the least of it; a long one (a grazing
+        view) holds the others and shares nearly all of its small one.
+
+        The glints: views whose half vectors lie within a few degrees see the same glints, as far as their
+        footprints overlap. With `half` (the view's half vector) and `own_rel_sq` (its whole texture variance,
+        relative, the lobe correction's included), Cov(gᵢ, ḡ) = own_rel_sq · mean over j of
+        excess(|hᵢ − hⱼ|) |Aᵢ ∩ Aⱼ| / Aⱼ (`glint_excess`). On a glossy sample every view of the lobe has its half
+        vector within a degree of the normal: most of their glint error is one error of them all.
+
+        A view's overlaps are taken once (its row is built again once E⊥ brackets it), over at most MAX_VIEWS
+        views spread over those seen."""
         if not self.n or self.share <= 0:
             return 0.0
         if point_id not in self._common:
-            self._common[point_id] = self._overlap(grid) / abs(float(np.linalg.det(grid)))
+            overlaps, halves = self._overlaps(grid)
+            self._common[point_id] = float(np.mean(overlaps)) / abs(float(np.linalg.det(grid)))
+            excess = 0.0
+            if half is not None:
+                apart = np.degrees(np.arccos(np.clip(halves @ half, -1.0, 1.0)))
+                bins = np.append(self.glint_excess(), 0.0)[np.searchsorted(GLINT_BINS_DEG, apart)]
+                excess = float(np.mean(bins * overlaps))
+            self._shared[point_id] = own_rel_sq * excess
         scale = self.share * self._block_area / self.n
-        mean_cov = scale * float(np.mean(list(self._common.values())))
-        return max(2.0 * scale * self._common[point_id] - mean_cov, 0.0)
+        mean_cov = scale * float(np.mean(list(self._common.values()))) + float(np.mean(list(self._shared.values())))
+        return max(2.0 * (scale * self._common[point_id] + self._shared[point_id]) - mean_cov, 0.0)
 
-    def _overlap(self, grid: np.ndarray) -> float:
-        """Mean over the views seen of |A ∩ Aⱼ| / Aⱼ for this view's footprint A."""
+    def _overlaps(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """|A ∩ Aⱼ| / Aⱼ for this view's footprint A and the views seen (at most MAX_VIEWS of them), and their half
+        vectors."""
         n = self.n
         rows, cols = self._shape or (1, 1)
         steps = (np.arange(OVERLAP_GRID) + 0.5) / OVERLAP_GRID - 0.5
@@ -162,7 +204,7 @@ class StaticTexture:
         lx = inv[:, 0, 0, None] * sx + inv[:, 0, 1, None] * sy               # in each view's own grid
         ly = inv[:, 1, 0, None] * sx + inv[:, 1, 1, None] * sy
         inside = ((np.abs(lx) <= cols / 2.0) & (np.abs(ly) <= rows / 2.0)).mean(axis=1)
-        return float(np.mean(np.minimum(inside * abs(np.linalg.det(grid)) / areas, 1.0)))   # mean |Aᵢ ∩ Aⱼ| / Aⱼ
+        return np.minimum(inside * abs(np.linalg.det(grid)) / areas, 1.0), self._halves[views]
 
 
 def _resized(a: np.ndarray, rows: int) -> np.ndarray:

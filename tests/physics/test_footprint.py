@@ -54,17 +54,20 @@ def test_peak_mean_is_low_and_corrected_to_the_centre_value():
 
 def test_flat_noisy_roi_has_no_resolved_lobe():
     rng = np.random.default_rng(7)
-    resolved = 0
+    resolved = curved = 0
     for _ in range(200):
         image = 100.0 * rng.lognormal(0.0, 0.05, size=(ROI_PX, ROI_PX))
         fit = fit_lobe(block_means(image), 10, image.shape)
         assert abs(fit.bias_rel) < 5 * fit.u_bias_rel
         resolved += fit.resolved
+        curved += fit.curved
         stats = roi_statistics(image, np.full(image.shape, 1.0))
-        if not fit.resolved:                                         # nothing changes
-            assert stats.mean == image.mean() and stats.u_lobe == 0 and stats.lobe_bias_rel == 0
+        if not fit.resolved:                                         # the mean is left as it is
+            assert stats.mean == image.mean() and stats.lobe_bias_rel == 0
+            assert stats.u_lobe == (abs(fit.bias_rel) * stats.mean if fit.curved else 0.0)
             assert "narrow_lobe" not in point_flags(stats, 3.0, False)
     assert resolved <= 4                                             # |z| ≥ 3: 0.3 % for a normal law
+    assert curved <= 5                                               # −3 < z ≤ −2.5: 0.5 %
 
 
 def test_bias_uncertainty_is_honest_on_white_texture():

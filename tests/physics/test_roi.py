@@ -87,7 +87,8 @@ def test_a_linear_slope_across_the_roi_is_not_texture():
 
 def test_a_curved_flank_too_noisy_to_correct_keeps_its_bias_as_u():
     """On a steep curved flank the ROI mean exceeds the centre value; where texture keeps the fit from resolving
-    that bias it is left in the mean and counted as u_lobe, so that u covers the error (flat ROIs get none)."""
+    that bias it is left in the mean and counted as u_lobe, so that u covers the error (flat ROIs get none, but
+    for the few whose chance curvature passes CURVED_Z)."""
     rng = np.random.default_rng(3)
     y, x = (np.mgrid[0:70, 0:70] - 34.5) / 35.0
     lobe = np.exp(0.3 * x + 0.005 * x * x)                   # centre value 1: the ROI mean is 1.9 % above it
@@ -102,19 +103,54 @@ def test_a_curved_flank_too_noisy_to_correct_keeps_its_bias_as_u():
         error = stats.mean / np.mean(texture) - 1                # texture's own mean error taken out
         z_with.append(error / np.hypot(stats.u_lobe, 1e-4))
         z_without.append(error / 1e-4)
-    assert len(z_with) > 30 and len(flat_u_lobe) > 30 and max(flat_u_lobe) == 0.0
+    assert len(z_with) > 30 and len(flat_u_lobe) > 30 and np.mean(np.array(flat_u_lobe) > 0) < 0.1
     assert np.mean(np.abs(z_with) <= 2) > 0.7 > 0.0 == np.mean(np.abs(z_without) <= 2)
 
 
-def test_the_block_pattern_is_the_texture_about_the_plane_over_the_mean():
-    """What the texture u is the spread of, kept for the static/glint split (issue 34): a slope adds nothing, a
-    change of unit nothing, and a grain pattern shows block for block."""
+def test_a_peak_too_noisy_to_correct_keeps_its_bias_as_u():
+    """At a lobe's peak no slope shows it: where texture keeps the fit from resolving the peak's bias (the mean
+    below the centre value) but the bias stands CURVED_Z of its u from 0, it is counted as u_lobe. The issue's
+    glossy peak views had no u for it and averaged z −2.9. (Where the fit sees less, the bias is not counted.)"""
+    rng = np.random.default_rng(4)
+    y, x = (np.mgrid[0:70, 0:70] - 34.5) / 35.0
+    lobe = np.exp(-0.05 * (x * x + y * y))                  # centre value 1: the ROI mean is 3.2 % below it
+    counted, errors = [], []
+    for _ in range(150):
+        texture = 1.0 + np.kron(rng.normal(0, 0.1, (14, 14)), np.ones((5, 5)))
+        stats = roi_statistics(texture * lobe, np.full(x.shape, 1e-8))
+        if not stats.corrected and stats.lobe.curved:
+            counted.append(stats.u_lobe / stats.mean)
+            errors.append(stats.mean / np.mean(texture) - 1)     # texture's own mean error taken out
+    assert len(counted) > 15
+    assert np.mean(np.abs(errors) <= 2 * np.array(counted)) > 0.9 and np.mean(errors) < -0.02
+
+
+def test_the_block_pattern_is_the_texture_about_the_lobe_fits_quadratic():
+    """What the texture's covariances are estimated from, kept for the static/glint split (issue 34): the log block
+    means about the lobe fit's quadratic, so that a lobe's curvature (a flank the fit does not resolve included) adds
+    nothing, nor a change of unit, while a grain pattern shows block for block. An ROI too small for that fit
+    (under 12 blocks) keeps its block means about their plane."""
     rng = np.random.default_rng(5)
     grain = np.kron(rng.standard_normal((7, 7)), np.ones((10, 10)))
-    y, x = np.mgrid[0:70, 0:70]
-    plain = roi_statistics(100 + grain, np.zeros((70, 70))).pattern
-    sloped = roi_statistics(3 * (100 + grain + 0.05 * (x - 34.5) - 0.02 * (y - 34.5)), np.zeros((70, 70))).pattern
-    assert plain is not None and sloped is not None and plain.shape == (7, 7)
-    assert np.allclose(sloped, plain, atol=1e-12)
-    assert np.corrcoef(plain.ravel(), block_means(grain).ravel())[0, 1] > 0.95
+    y, x = (np.mgrid[0:70, 0:70] - 34.5) / 35.0
+    plain = roi_statistics(100 + grain, np.zeros((70, 70)))
+    curved = roi_statistics(3 * (100 + grain) * np.exp(0.3 * x - 0.2 * y - 0.4 * x * x + 0.1 * x * y),
+                            np.zeros((70, 70)))
+    assert plain.pattern is not None and curved.pattern is not None and plain.pattern.shape == (7, 7)
+    assert plain.quadratic and curved.quadratic
+    np.testing.assert_allclose(curved.pattern, plain.pattern, atol=1e-4)    # 10 px blocks of a 35 px curvature
+    assert np.corrcoef(plain.pattern.ravel(), block_means(grain).ravel())[0, 1] > 0.9
+    small = roi_statistics(100 + grain[:30, :30] + 0.05 * x[:30, :30], np.zeros((30, 30)))
+    assert small.pattern is not None and not small.quadratic
+    np.testing.assert_allclose(small.pattern * 100, block_means(grain[:30, :30]) - block_means(grain[:30, :30]).mean()
+                               - _plane(block_means(grain[:30, :30])), atol=0.05)
     assert roi_statistics(np.zeros((70, 70)), np.zeros((70, 70))).pattern is None
+
+
+def _plane(means: np.ndarray) -> np.ndarray:
+    """The least-squares plane through block means, less their mean."""
+    rows, cols = means.shape
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    design = np.stack([np.ones(means.size), xx.ravel() - xx.mean(), yy.ravel() - yy.mean()], axis=1)
+    coef = np.linalg.lstsq(design, means.ravel(), rcond=None)[0]
+    return (design[:, 1:] @ coef[1:]).reshape(rows, cols)

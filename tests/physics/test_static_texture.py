@@ -95,3 +95,30 @@ def test_a_small_footprint_among_long_ones_shares_least_of_its_grain():
     texture = views([tilted] * 30 + [np.eye(2)])
     normal, long = texture.common_variance("v30", np.eye(2)), texture.common_variance("v0", tilted)
     assert normal < 0.75e-6 and long == pytest.approx(5e-7, rel=0.1)
+
+
+def test_views_with_nearby_half_vectors_share_their_glints():
+    """Views of the same area whose half vectors lie within half a degree see the same glints: their patterns share
+    the glints' part beyond the static grain (`glint_excess`, its first bin), and a view of a cluster that is half
+    the run has that much more of its error in the campaign's mean (`common_variance`); a lone view adds none."""
+    rng = np.random.default_rng(3)
+    shape = (30, 30)                                              # large patterns: chance products small
+    grain = 0.5 * rng.standard_normal(shape)                      # static: a sixth of each pattern's power
+    texture, sizes = StaticTexture(), (40, 10, 10, 10, 1)
+    for c, size in enumerate(sizes):                              # clusters of half vectors 10° apart
+        glints = rng.standard_normal(shape)                       # two thirds, shared within the cluster
+        for k in range(size):
+            pattern = grain + glints + 0.5 * rng.standard_normal(shape)
+            texture.observe(f"c{c}-{k}", pattern, np.eye(2), half_vector(20.0 * c + 0.02 * k, 0.0, 0.0, 0.0),
+                            1e-6)
+    assert texture.share == pytest.approx(1 / 6, abs=0.05)
+    assert texture.glint_excess()[0] == pytest.approx(2 / 3, abs=0.07)
+    assert np.all(texture.glint_excess()[1:] == 0.0)             # no pairs that far apart: nothing assumed
+    own = 6e-6                                                    # the view's whole texture variance (relative)
+    # The first asked: 2 Cov(t, t̄) − Var(t̄) with Var(t̄) its own Cov(t, t̄) (the only view asked yet)
+    member = texture.common_variance("c0-0", np.eye(2), half_vector(0.0, 0.0, 0.0, 0.0), own)
+    glint = own * texture.glint_excess()[0] * 40 / 71             # its cluster's share of the run's views
+    assert member == pytest.approx(texture.share * 1e-6 + glint, rel=0.01)
+    assert glint > 2 * texture.share * 1e-6
+    lone = texture.common_variance("c4-0", np.eye(2), half_vector(80.0, 0.0, 0.0, 0.0), own)
+    assert lone == pytest.approx(max(texture.share * 1e-6 - glint / 2, 0.0), abs=1e-9)
