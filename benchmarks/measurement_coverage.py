@@ -20,7 +20,9 @@ n = 3000 measured through the ND wheel with an alignment on its peak (tests/camp
 RetroPhong RM3 to θi 85° (tests/campaigns/e2e-steep.yaml). The glossy sample's lobe goes through the wheel, so a
 per-filter shift takes with it whatever its lobe's views share (the same glints, half vectors within a degree):
 it is also scored with the simulator's true transmissions taken out (rig.simulators.world) and one shift for the
-run, which takes out only what every point shares.
+run, which takes out only what every point shares; and against the exact truth (rig.bench.truth.measured_exactly:
+the BRDF at the axes' physical positions, the true transmissions out, one shift), where no fitted axis angle
+takes anything from the errors the lobe's views share either.
 
     python benchmarks/measurement_coverage.py [--draws 10] [--seed 101] [--first 0] [--issue-seeds 4]
 """
@@ -41,6 +43,7 @@ sys.path.insert(0, str(ROOT))
 from rig.acquisition.run import run_campaign  # noqa: E402
 from rig.bench.draws import FAMILIES, Draw, draw  # noqa: E402
 from rig.bench.error_vs_time import machine  # noqa: E402
+from rig.bench.truth import measured_exactly  # noqa: E402
 from rig.config.campaign import Campaign, SimulatedBrdf, load_campaign  # noqa: E402
 from rig.config.rigfile import RigConfig, SimulationConfig, simulated_rig  # noqa: E402
 from rig.data.dataset_reader import load  # noqa: E402
@@ -87,6 +90,18 @@ def point_errors(drawn: Draw, out: Path) -> dict[str, np.ndarray]:
     sample = base.sample.model_copy(update={"simulated_brdf": SimulatedBrdf(model=drawn.family, params=drawn.params)})
     rig = simulated_rig().model_copy(update={"simulation": SimulationConfig(seed=drawn.seed * 1000 + drawn.index)})
     return campaign_errors(base.model_copy(update={"sample": sample}), rig, out)
+
+
+def exact_errors(campaign: Campaign, rig: RigConfig, out: Path) -> dict[str, np.ndarray]:
+    """Measure `campaign` on the simulated `rig`; per point (the saturated left out): z of the point-to-point part
+    against the exact truth (`measured_exactly`), one shift for the run taken out, and z against the whole u."""
+    d, exact = measured_exactly(campaign, rig, out)
+    ok = ~d.has_flag("roi_saturated")
+    f, u, u_point = d["brdf_per_sr"][ok], d["u_brdf_per_sr"][ok], d["u_brdf_point_per_sr"][ok]
+    rel = f / exact.transmission_ratio[ok] / exact.brdf_per_sr[ok] - 1
+    z_point, shift = shared_out(rel, u_point / f, np.zeros(rel.size), np.empty((rel.size, 0)))
+    return {"z_point": z_point, "z_total": (f - exact.brdf_per_sr[ok]) / u, "rel": rel, "shift": shift,
+            "u_corr": np.array([np.median(d["u_brdf_correlated_per_sr"][ok] / f)]), "u_point_rel": u_point / f}
 
 
 def campaign_errors(campaign: Campaign, rig: RigConfig, out: Path, true_transmissions: bool = False
@@ -168,12 +183,14 @@ def main() -> None:
         print(head)
     with tempfile.TemporaryDirectory() as tmp:
         for name, path in ISSUE_SAMPLES.items():
-            for true_t in (False, True) if args.issue_seeds else ():
-                runs = [campaign_errors(load_campaign(path), issue_rig(args.seed * 1000 + 500 + k),
-                                        Path(tmp) / f"{path.stem}-{k}-{true_t}", true_t)
-                        for k in range(args.issue_seeds)]
-                label = f"{name[:14]} {'true T' if true_t else 'fitted'}"
-                print(line(label, {key: np.concatenate([r[key] for r in runs]) for key in runs[0]}), flush=True)
+            for how in ("fitted", "true T", "exact") if args.issue_seeds else ():
+                seeds = [args.seed * 1000 + 500 + k for k in range(args.issue_seeds)]
+                runs = [exact_errors(load_campaign(path), issue_rig(seed), Path(tmp) / f"{path.stem}-{seed}-exact")
+                        if how == "exact" else
+                        campaign_errors(load_campaign(path), issue_rig(seed), Path(tmp) / f"{path.stem}-{seed}-{how}",
+                                        how == "true T") for seed in seeds]
+                print(line(f"{name[:14]} {how}", {key: np.concatenate([r[key] for r in runs]) for key in runs[0]}),
+                      flush=True)
     print(f"wall time {time.perf_counter() - t0:.0f} s")
 
 
