@@ -68,7 +68,11 @@ class RoiStats:
     #: texture's covariances are estimated from (rig.physics.block_correlation), kept so that views of the same
     #: sample area can be compared (rig.physics.static_texture). None for a black ROI.
     pattern: np.ndarray | None = None
-    quadratic: bool = False
+
+    @property
+    def quadratic(self) -> bool:
+        """Whether `pattern` is about the lobe fit's quadratic (else about the block means' plane)."""
+        return self.lobe.residual is not None
 
     @property
     def u_texture(self) -> float:
@@ -189,12 +193,11 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
         # (LobeFit.curved), the lobe's curvature biases the mean: the bias it estimates is left in, and counted as
         # its u.
         dev, _, f_plane = _about_plane(means)
-        pattern, quadratic = (lobe.residual, True) if lobe.residual is not None else (
-            dev / mean if mean > 0 else None, False)
+        pattern = lobe.residual if lobe.residual is not None else (dev / mean if mean > 0 else None)
         return RoiStats(mean=mean, u_mean=u_mean_of_blocks(means), u_mean_noise=mean_noise(variance),
                         std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe,
                         u_lobe=abs(lobe.bias_rel * mean) if f_plane > SLOPE_F or lobe.curved else 0.0,
-                        pattern=pattern, quadratic=quadratic)
+                        pattern=pattern)
     # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
     scale = 1.0 / (1.0 + lobe.bias_rel)
     flattened = means / lobe.trend
@@ -204,7 +207,7 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
                     u_mean_noise=mean_noise(variance) * scale, std=float(image.std(ddof=1)), n=n,
                     n_blocks=int(means.size), lobe=lobe,
                     u_lobe=float(np.sqrt(max(u_centre ** 2 - u_mean ** 2, 0.0))) * scale,
-                    corrected=True, pattern=lobe.residual, quadratic=True)
+                    corrected=True, pattern=lobe.residual)
 
 
 def point_flags(stats: RoiStats, min_snr: float, saturated: bool) -> tuple[str, ...]:
