@@ -25,7 +25,8 @@ per-filter shift takes with it whatever its lobe's views share (the same glints,
 it is also scored with the simulator's true transmissions taken out (rig.simulators.world) and one shift for the
 run, which takes out only what every point shares; and against the exact truth (rig.bench.truth.measured_exactly:
 the BRDF at the axes' physical positions, the true transmissions out, one shift), where no fitted axis angle
-takes anything from the errors the lobe's views share either.
+takes anything from the errors the lobe's views share either. Last, each family and issue sample against the
+exact truth, inside the issue's band (93–97 %, std(z) 0.85–1.15) or not.
 
     python benchmarks/measurement_coverage.py [--draws 10] [--seed 101] [--first 0] [--issue-seeds 4]
 """
@@ -137,6 +138,18 @@ def line(name: str, r: dict[str, np.ndarray]) -> str:
             f"{np.mean(np.abs(zt) <= 2):7.3f} {zt.std():6.2f}")
 
 
+#: The issue's band for the point-to-point part: k = 2 coverage and std(z).
+BAND_COVERAGE, BAND_STD = (0.93, 0.97), (0.85, 1.15)
+
+
+def verdict(name: str, runs: list[dict[str, np.ndarray]]) -> str:
+    """Whether the pooled point-to-point z of `runs` lie inside the issue's band (BAND_COVERAGE, BAND_STD)."""
+    z = np.concatenate([r["z_point"] for r in runs])
+    cover, spread = float(np.mean(np.abs(z) <= 2)), float(z.std())
+    inside = BAND_COVERAGE[0] <= cover <= BAND_COVERAGE[1] and BAND_STD[0] <= spread <= BAND_STD[1]
+    return f"{name:22s} {100 * cover:5.1f} % / {spread:4.2f}  {'inside' if inside else 'OUTSIDE'}"
+
+
 def issue_rig(seed: int) -> RigConfig:
     """The simulated rig (with its filter wheel) on `seed`."""
     return simulated_rig().model_copy(update={"simulation": SimulationConfig(seed=seed)})
@@ -174,12 +187,18 @@ def main() -> None:
         print(f"the issue's kinds of sample, {args.issue_seeds} simulated rigs each "
               f"(seeds {args.seed}·1000 + 500 + k):")
         print(head)
+    exact = [(family, pooled[(family, "exact")]) for family in FAMILIES if (family, "exact") in pooled]
     with tempfile.TemporaryDirectory() as tmp:
         for name, path in ISSUE_SAMPLES.items():
             runs = [scores(load_campaign(path), issue_rig(args.seed * 1000 + 500 + k), Path(tmp) / f"{path.stem}-{k}")
                     for k in range(args.issue_seeds)]
             for how in ANALYSES if runs else ():
                 print(pooled_line(f"{name[:14]} {how}", [r[how] for r in runs]), flush=True)
+            exact += [(name[:14], [r["exact"] for r in runs])] if runs else []
+    print(f"against the exact truth, the issue's band ({100 * BAND_COVERAGE[0]:.0f}–{100 * BAND_COVERAGE[1]:.0f} %, "
+          f"std(z) {BAND_STD[0]}–{BAND_STD[1]}):")
+    for name, runs in exact:
+        print(verdict(name, runs))
     print(f"wall time {time.perf_counter() - t0:.0f} s")
 
 

@@ -191,8 +191,8 @@ class Acquisition:
         """ROI statistics and flags from the ROI's merge, and the whole window merged when images are saved
         (`merged_image`); no camera I/O. The ROI's numbers do not depend on whether images are saved.
 
-        The luminance is the value at the ROI centre: the ROI mean corrected for a resolved lobe's curvature
-        (rig.physics.footprint), whose uncertainty adds to u_luminance.
+        The luminance is the value at the ROI centre: the ROI mean corrected for a lobe's curvature where it is
+        resolved or the slope is clear (rig.physics.roi), whose uncertainty adds to u_luminance.
 
         A camera with a calibration file (`rig calibrate camera`) has its flat field (lens fall-off and PRNU)
         divided out of the merged rate, pixel by pixel, before its coefficient applies."""

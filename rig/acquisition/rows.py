@@ -121,8 +121,10 @@ def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float,
 
     The block variance (relative) joins the static grain's estimate. The part of the whole (texture and lobe) that
     the campaign's mean texture error takes with it (`common_variance`: the static grain's, and the glints views
-    of nearby half vectors share) leaves the texture's u first, then the lobe's. Before the estimate has its
-    minimum of view pairs (or without a pattern, or for an edge-on view) nothing moves."""
+    of nearby half vectors share) leaves the texture's u first, then the lobe's; where it is negative (a view that
+    shares none of the glints most views share varies about their mean by more than its own texture) it adds to the
+    texture's u. Before the estimate has its minimum of view pairs (or without a pattern, or for an edge-on view)
+    nothing moves."""
     cap, grid = m.capture, grid_map(m.motors_deg)
     if cap.roi_pattern is None or not usable(grid) or cap.luminance_cd_m2 <= 0:
         return cap.u_texture_cd_m2, 0.0, cap.u_lobe_cd_m2
@@ -143,7 +145,7 @@ def texture_split(m: Measurement, texture: StaticTexture) -> tuple[float, float,
     whole_sq = texture_sq + lobe_sq
     common_sq = min(texture.common_variance(m.point.point_id, grid, half, whole_sq / lum_sq) * lum_sq, whole_sq)
     lobe_common_sq = max(common_sq - texture_sq, 0.0)
-    return (float(np.sqrt(texture_sq - common_sq + lobe_common_sq)), float(np.sqrt(common_sq)),
+    return (float(np.sqrt(texture_sq - common_sq + lobe_common_sq)), float(np.sqrt(max(common_sq, 0.0))),
             float(np.sqrt(lobe_sq - lobe_common_sq)))
 
 

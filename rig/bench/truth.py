@@ -38,8 +38,10 @@ def measured_with_truth(campaign: Campaign, rig: RigConfig, out: Path) -> tuple[
 @dataclass(frozen=True)
 class ExactTruth:
     """What the simulated rig really did at each row, from its world (the simulator's truth): the BRDF at the
-    axes' physical positions (the read-back plus each axis's zero error, the arm's aligned zero put back) and the
-    true transmission of the row's filter over its certificate's (1 without one). Against these a row's error is
+    axes' physical positions (the read-back plus each axis's zero error, the arm's aligned zero put back), times
+    cos θi there over cos θi of the row (the row divides the luminance by E⊥ cos θi at its own angle, the lamp lit
+    the sample at the physical one: 0.2 % at θi 85° for a 0.01° zero error), and the true transmission of the row's
+    filter over its certificate's (1 without one). Against these a row's error is
     what the rig's shared errors of geometry and filters leave: its own, and what the texture shares."""
 
     brdf_per_sr: np.ndarray
@@ -72,7 +74,9 @@ def measured_exactly(campaign: Campaign, rig: RigConfig, out: Path) -> tuple[Dat
     certified = {flt.position: flt.transmission for flt in rig.attenuator.filters} if rig.attenuator else {}
     ratio = np.array([world.transmission_truth.get(int(p), 1.0) / certified.get(int(p), 1.0)
                       for p in d["filter_position"]])
-    return d, ExactTruth(get_model(spec.model)(wi, wo, spec.params), ratio)
+    # The row divides by E⊥ cos θi at its own θi, the lamp lit the sample at the physical one
+    lit = wi[:, 2] / np.cos(np.radians(d["theta_i_deg"]))
+    return d, ExactTruth(get_model(spec.model)(wi, wo, spec.params) * lit, ratio)
 
 
 def _measured(campaign: Campaign, rig: RigConfig, out: Path, opener: RigOpener) -> Dataset:

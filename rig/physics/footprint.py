@@ -24,8 +24,8 @@ turns into a component.
 Texture (3 % grains, 10 % direction-dependent glints on the simulated sample) makes a fit on a flat
 ROI show spurious gradient and curvature. Correcting by such a noise-driven bias would only add
 noise (about 0.2 block spreads, i.e. more than the ROI mean's own uncertainty), so the bias counts
-only when it is resolved: |bias| ≥ RESOLVED_Z · u(bias). Below that the ROI mean is left alone and the
-component is 0, which leaves diffuse and retroreflective samples exactly as before.
+only when it is resolved, |bias| ≥ RESOLVED_Z · u(bias), or where the ROI lies on a clear slope (rig.physics.roi
+decides, SLOPE_F). Elsewhere the ROI mean is left alone and the component is 0.
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ class LobeFit:
 
     bias_rel: float         # ROI mean / value at the ROI centre − 1, from the fitted surface
     u_bias_rel: float       # standard uncertainty of bias_rel (fit covariance, residual spread)
-    resolved: bool          # |bias_rel| ≥ RESOLVED_Z · u_bias_rel: the bias counts
+    resolved: bool          # |bias_rel| ≥ RESOLVED_Z · u_bias_rel: the bias counts (so does a clear slope's)
     width_rel: float        # lobe's half-width (e^-½ of its peak, narrowest direction) / ROI half-diagonal
     residual_rel: float     # standard deviation of the log block means about the fit (texture), relative
     slope_rel: float = 0.0  # |∇ log f| at the ROI centre, per ROI half-diagonal (i.e. per footprint)

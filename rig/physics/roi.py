@@ -20,10 +20,18 @@ estimates that bias; where it is resolved, the mean is corrected to the centre v
 spread of the block means about the fitted lobe rather than about their mean (which would count the lobe as
 texture). The corrected value weighs the blocks unevenly (rig.physics.footprint.centre_weights: the fitted
 surface at the centre): what that adds to the texture's variance of an even mean is its own component
-(u_lobe). Where it is not resolved the ROI's own u is the spread about the block means' plane (a slope averages
-out of the mean); on a clear slope, or at a peak whose curvature the fit sees at CURVED_Z, the lobe's curvature
-still biases the mean, by about the bias the fit estimates, which is then u_lobe (no correction applied): a kink
-or a curved flank within the footprint (issue 34).
+(u_lobe).
+
+Which ROIs are corrected: those whose bias is resolved (RESOLVED_Z), and every ROI on a clear slope (SLOPE_F),
+resolved or not. A slope alone makes the ROI mean exceed the centre value (the mean of an exponential), so on a
+flank the bias is there whatever the fit makes of it; and the slope's test does not select on the bias estimate's
+own noise. Deciding on that estimate alone did: of the views on a lobe whose bias stands 2–3 u(bias) from 0, those
+whose texture made it look larger were corrected, slightly over (the issue's glossy lobe 0–1° off the mirror
+direction: z +0.4…+0.7), and those whose texture made it look smaller were left with |b̂| as u, which fell short of
+the bias they kept (z −1.5…−1.7; a steep RetroPhong's clear flanks: corrected at random, z std 2.5). Where a ROI
+is not corrected its u is the spread about the block means' plane (a slope averages out of the mean), and at a
+peak whose curvature the fit sees at CURVED_Z, short of RESOLVED_Z, the bias it estimates is left in the mean and
+counted as u_lobe (issue 34).
 
 A row does not take u_mean as it is: where the grain is about a block wide, neighbouring blocks correlate
 beyond what one ROI's edge covariance shows, so the row's texture is the ROI's independent-block variance
@@ -52,7 +60,7 @@ BLOCK_PX = 10
 class RoiStats:
     """Summary of one ROI, in the image's unit (e.g. cd/m²)."""
 
-    mean: float            # ROI mean, corrected to the value at the ROI centre where a lobe is resolved
+    mean: float            # ROI mean, corrected to the value at the ROI centre where the lobe is corrected
     u_mean: float          # standard uncertainty of the mean from the spread of block means (about the lobe)
     u_mean_noise: float    # from the propagated per-pixel variance alone
     std: float             # pixel standard deviation (texture + noise)
@@ -126,7 +134,8 @@ def block_means(image: np.ndarray, block_px: int = BLOCK_PX) -> np.ndarray:
 
 
 #: A plane through the block means explains this many times their residual variance (per parameter, an F
-#: statistic) when the ROI lies on a lobe's flank: a pure texture gives about 1 (F > 10 by chance: p < 1e-3).
+#: statistic) when the ROI lies on a lobe's flank: a pure texture gives about 1 (F > 10 by chance: p < 1e-3). On such
+#: a clear slope the lobe is corrected whether or not its bias is resolved (module docstring).
 SLOPE_F = 10.0
 
 
@@ -188,16 +197,14 @@ def roi_statistics(image: np.ndarray, variance: np.ndarray, block_px: int = BLOC
         raise ValueError(f"ROI {image.shape} holds fewer than two {block_px}×{block_px} px blocks")
     n, mean = image.size, float(image.mean())
     lobe = fit_lobe(means, block_px, image.shape) if mean > 0 else NO_LOBE
-    if not lobe.resolved or lobe.trend is None:
-        # On a flank (the plane is clear), or at a peak whose curvature the fit sees short of resolving it
-        # (LobeFit.curved), the lobe's curvature biases the mean: the bias it estimates is left in, and counted as
-        # its u.
-        dev, _, f_plane = _about_plane(means)
+    dev, _, f_plane = _about_plane(means)
+    if lobe.trend is None or not (lobe.resolved or f_plane > SLOPE_F):
+        # At a peak whose curvature the fit sees short of resolving it (LobeFit.curved), the lobe's curvature
+        # biases the mean: the bias it estimates is left in, and counted as its u.
         pattern = lobe.residual if lobe.residual is not None else (dev / mean if mean > 0 else None)
         return RoiStats(mean=mean, u_mean=u_mean_of_blocks(means), u_mean_noise=mean_noise(variance),
                         std=float(image.std(ddof=1)), n=n, n_blocks=int(means.size), lobe=lobe,
-                        u_lobe=abs(lobe.bias_rel * mean) if f_plane > SLOPE_F or lobe.curved else 0.0,
-                        pattern=pattern)
+                        u_lobe=abs(lobe.bias_rel * mean) if lobe.curved else 0.0, pattern=pattern)
     # The centre value is the ROI mean / (1 + bias); its texture and noise parts scale with it.
     scale = 1.0 / (1.0 + lobe.bias_rel)
     flattened = means / lobe.trend

@@ -297,8 +297,8 @@ def test_the_plugin_loader_accepts_the_driver_with_its_options():
 
 
 def test_a_point_captured_through_the_driver_is_the_roi_mean_of_labsoft_s_image():
-    luminance = np.full((HEIGHT, WIDTH), 3.9, dtype=np.float32)
-    luminance[:, 60:] = 4.1                          # right half brighter: the ROI mean is 4
+    rows, cols = np.indices((HEIGHT, WIDTH))
+    luminance = np.where((rows + cols) % 2, 4.1, 3.9).astype(np.float32)   # a pixel checkerboard: the ROI mean is 4
     server = FakeLmkServer(luminance)
     cap = capturer_for(camera(server), CaptureSettings(roi_px=40)).acquire().reduce()
     assert ("iHighDynPic", 10.0, 1e-4, 4.0, 0, 0.0) in server.calls     # longest, shortest, 2 stops apart

@@ -85,26 +85,22 @@ def test_a_linear_slope_across_the_roi_is_not_texture():
     assert np.sqrt(np.mean(np.square(sloped))) == pytest.approx(np.sqrt(np.mean(np.square(flat))), rel=0.05)
 
 
-def test_a_curved_flank_too_noisy_to_correct_keeps_its_bias_as_u():
-    """On a steep curved flank the ROI mean exceeds the centre value; where texture keeps the fit from resolving
-    that bias it is left in the mean and counted as u_lobe, so that u covers the error (flat ROIs get none, but
-    for the few whose chance curvature passes CURVED_Z)."""
+@pytest.mark.parametrize("curvature", [0.005, 0.05, -0.05])
+def test_a_clear_flank_is_corrected_whether_or_not_its_bias_is_resolved(curvature):
+    """On a steep flank the ROI mean exceeds the centre value (the mean of an exponential), here by 0–3 %, about
+    2 u(bias) under 10 % texture. Every ROI with a clear slope is corrected, so no view is picked by its own bias
+    estimate: the corrected values are unbiased and their u calibrated. Corrected only where the bias was resolved,
+    the views were picked by their texture (mean z +0.6…+0.9, or std 0.64 where the bias nearly cancels)."""
     rng = np.random.default_rng(3)
     y, x = (np.mgrid[0:70, 0:70] - 34.5) / 35.0
-    lobe = np.exp(0.3 * x + 0.005 * x * x)                   # centre value 1: the ROI mean is 1.9 % above it
-    z_with, z_without, flat_u_lobe = [], [], []
-    for _ in range(60):
+    lobe = np.exp(0.3 * x + curvature * x * x)               # centre value 1
+    z = []
+    for _ in range(200):
         texture = 1.0 + np.kron(rng.normal(0, 0.1, (14, 14)), np.ones((5, 5)))
         stats = roi_statistics(texture * lobe, np.full(x.shape, 1e-8))
-        flat = roi_statistics(texture, np.full(x.shape, 1e-8))
-        flat_u_lobe += [] if flat.corrected else [flat.u_lobe]
-        if stats.corrected:
-            continue
-        error = stats.mean / np.mean(texture) - 1                # texture's own mean error taken out
-        z_with.append(error / np.hypot(stats.u_lobe, 1e-4))
-        z_without.append(error / 1e-4)
-    assert len(z_with) > 30 and len(flat_u_lobe) > 30 and np.mean(np.array(flat_u_lobe) > 0) < 0.1
-    assert np.mean(np.abs(z_with) <= 2) > 0.7 > 0.0 == np.mean(np.abs(z_without) <= 2)
+        assert stats.corrected and stats.u_lobe > 0
+        z.append((stats.mean - 1.0) / np.hypot(stats.u_mean, stats.u_lobe))
+    assert abs(np.mean(z)) < 0.2 and 0.85 < np.std(z) < 1.2 and 0.92 < np.mean(np.abs(z) <= 2) < 0.98
 
 
 def test_a_peak_too_noisy_to_correct_keeps_its_bias_as_u():
