@@ -1,8 +1,9 @@
 """Benchmark: does `rig fit` report the global optimum? Each model's fit against the best of 20 random starts.
 
-For every registry model and dataset, the fit as `rig fit` runs it (its default weighting: by u where
-every row has one, else unweighted) is compared with 20 bounded least_squares runs on all points from
-uniform random points of the fitting cube (log-uniform for log-scaled parameters), seeded. Printed per
+For every registry model and dataset, the fit as `rig fit` runs it (its default weighting: by each row's
+point-to-point u where every row has one, else unweighted; its flagged rows left out) is compared with 20
+bounded least_squares runs of the same objective on the same rows from uniform random points of the fitting
+cube (log-uniform for log-scaled parameters), seeded. Printed per
 model: the RMS residual of the fit's own objective (the RMSE when unweighted, √(χ²/N) when weighted)
 for the fit and for the best random start, their relative difference, the fit's parameters at a bound,
 how many of its search runs reached its best cost, and wall times. Issue 34's target: the fit within
@@ -31,7 +32,14 @@ from scipy.optimize import least_squares
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.analysis.fit import NONFINITE_RESIDUAL, ParamSpace, choose_weighting, fit_dataset  # noqa: E402
+from rig.analysis.fit import (  # noqa: E402
+    NONFINITE_RESIDUAL,
+    ParamSpace,
+    choose_weighting,
+    fit_dataset,
+    point_u,
+    usable_rows,
+)
 from rig.bench.error_vs_time import machine  # noqa: E402
 from rig.cli.main import main as rig_main  # noqa: E402
 from rig.data.dataset_reader import Dataset, load  # noqa: E402
@@ -98,11 +106,15 @@ def main() -> int:
         folder = Path(args.dataset) if args.dataset else Path(tmp)
         for name in args.only.split(","):
             ds = dataset(name, folder)
-            wi, wo = ds.directions()
-            f, u = ds["brdf_per_sr"], ds["u_brdf_per_sr"]
-            weighting, _ = choose_weighting(u, list(ds.point_id), "none" if args.unweighted else None)
+            # The rows and weights the fit itself takes (rig.analysis.fit.fit_dataset): its flagged rows left out,
+            # each row weighted by its point-to-point u where the dataset has it
+            keep = usable_rows(ds)
+            wi, wo = (w[keep] for w in ds.directions())
+            f, u = ds["brdf_per_sr"][keep], point_u(ds, keep)[0]
+            weighting, _ = choose_weighting(u, [p for p, k in zip(ds.point_id, keep) if k],
+                                            "none" if args.unweighted else None)
             sigma = u if weighting == "uncertainty" else np.ones_like(f)
-            print(f"\n{name}: {len(ds)} points, weighting {weighting}")
+            print(f"\n{name}: {int(keep.sum())} of {len(ds)} points, weighting {weighting}")
             print(f"{'model':15s} {'fit RMS':>10s} {'best of 20':>10s} {'rel diff':>9s} {'fit s':>6s} "
                   f"{'starts s':>8s} {'agree':>6s}  at bound")
             for model in args.models.split(","):

@@ -12,6 +12,7 @@ from scipy.optimize import least_squares
 from test_fit import views_around_lobes
 
 from rig.analysis.fit import ParamSpace, fit
+from rig.analysis.fit_search import distinct
 from rig.cli.fit import format_comparison, format_report
 from rig.physics.brdf_models import MODELS
 
@@ -55,3 +56,14 @@ def test_a_parameter_on_its_bound_is_flagged_and_not_called_converged():
     row = next(line for line in format_comparison([inside]).splitlines() if line.startswith("lambert"))
     assert " yes " in row and "[at bound]" not in row
 
+
+
+def test_optima_of_one_valley_take_one_refinement_not_all():
+    """The search's runs stop at its loose tolerance, so optima of one valley differ in cost by ~1e-5: they are
+    one basin, and the next basin (here 5e-4 above, as RM2's modified Phong had n ≈ 68 beside a valley at
+    n ≈ 5300 on the subsample) still gets a refinement. At 1e-7 the valley's four points took all four."""
+    valley = [np.array([0.72 + 0.06 * k, 0.80, 0.50]) for k in range(4)]
+    basin = np.array([0.30, 0.45, 0.60])
+    costs = np.array([212.45 * (1 + 1e-5 * k) for k in range(4)] + [212.45 * (1 + 5e-4)])
+    chosen = distinct([*valley, basin], 4, costs)
+    assert len(chosen) == 2 and chosen[0] is valley[0] and chosen[1] is basin
