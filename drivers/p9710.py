@@ -17,7 +17,7 @@ An underload (`?32` to a reading: less light than the range resolves, e.g. the
 lamp off or the detector covered) is not a failure of the meter but a reading
 in the dark: `read` returns it flagged (`IlluminanceReading.floor_a`, the
 floor of the range `GR` then reports), with the midpoint of [0, floor) as its
-value; rig.acquisition.meter_readings refuses such a reading as an E⊥.
+value; rig.physics.illuminance.estimate_of_readings refuses such a reading as an E⊥.
 
 Illuminance = photocurrent (`MA`) × the detector's certificate factor from the
 rig configuration, which the dataset records; `MV` (the meter's own calibrated

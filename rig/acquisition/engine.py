@@ -28,7 +28,6 @@ from rig.acquisition.attenuation import attenuation_for
 from rig.acquisition.capturer import capturer_for
 from rig.acquisition.eta import Eta, point_estimates_s
 from rig.acquisition.ledger import Ledger
-from rig.acquisition.meter_readings import illuminance_of
 from rig.acquisition.moves import Motors, Mover
 from rig.acquisition.outcome import UNKNOWN_FAILURE, RunEnding, Status, ending_of
 from rig.acquisition.phase import PhaseFile
@@ -49,7 +48,7 @@ from rig.data.images import point_image_metadata
 from rig.drivers.interfaces import RigDevices
 from rig.physics.budget import lobe_view_u_deg
 from rig.physics.footprint import view_footprint_deg
-from rig.physics.illuminance import IlluminanceEstimate, ReadingSchedule
+from rig.physics.illuminance import IlluminanceEstimate, NoLightError, ReadingSchedule, estimate_of_readings
 from rig.physics.optics import roi_inside_spot
 from rig.planning.estimate import NOMINAL_CAPTURE_S, WarmupEstimate
 from rig.planning.points import Plan, PlannedPoint, PointSource
@@ -141,12 +140,20 @@ class Runner:
                                                    self._event, self._report, self.eta), self.rig_time())
 
     def _read_illuminance(self, *, pause: bool = True) -> IlluminanceEstimate:
-        """E⊥ from `illuminance.readings` meter readings; a meter that stops answering pauses the
-        run (`pause`) or raises its DeviceError."""
+        """E⊥ from `illuminance.readings` meter readings, recorded in an `illuminance` event; a meter that stops
+        answering pauses the run (`pause`) or raises its DeviceError, and so does a batch that saw no light
+        (rig.physics.illuminance.estimate_of_readings)."""
         def take() -> list[IlluminanceReading]:
             return [self.dev.meter.read() for _ in range(self.campaign.illuminance.readings)]
-        est, fields = illuminance_of(self._answering(take) if pause else take(), self.rig_time(), self.rig.meter)
-        self.writer.event(events.ILLUMINANCE, **fields)
+        readings, meter = self._answering(take) if pause else take(), self.rig.meter
+        try:
+            est = estimate_of_readings(readings, self.rig_time(), meter.repeatability_rel, meter.calibration_u_rel,
+                                       meter.range_u_rel)
+        except NoLightError as exc:
+            raise DeviceError("meter", str(exc)) from None
+        self.writer.event(events.ILLUMINANCE, illuminance_normal_lx=est.value_lx, u_lx=est.u_lx, readings=est.n,
+                          photocurrent_a=float(np.mean([r.photocurrent_a for r in readings])),
+                          calibration_lx_per_a=readings[0].calibration_lx_per_a, rig_time_s=est.rig_time_s)
         return est
 
     def _new_reading(self) -> list[PlannedPoint]:

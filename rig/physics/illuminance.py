@@ -18,10 +18,13 @@ that would break CSV readers and fits.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from rig.core.values import IlluminanceReading
 
 #: Degrees of freedom given to the meter's specified repeatability when pooling it
 #: with the spread of a few readings (a 5-reading std alone is too uncertain for k = 2).
@@ -75,6 +78,37 @@ def estimate(readings_lx: np.ndarray, rig_time_s: float, repeatability_rel: floa
     u_range = abs(float(np.sum(np.broadcast_to(np.asarray(range_u_rel, float), values.shape) * values))) / n
     return IlluminanceEstimate(mean, math.sqrt(pooled_var / n + u_range ** 2), calibration_u_rel * mean, n,
                                rig_time_s)
+
+
+class NoLightError(ValueError):
+    """Meter readings of which no E⊥ can be made: the detector saw no light (the message gives the figures; the
+    caller names the meter)."""
+
+
+def estimate_of_readings(readings: Sequence[IlluminanceReading], rig_time_s: float, repeatability_rel: float,
+                         calibration_u_rel: float, range_u_rel: Sequence[float]) -> IlluminanceEstimate:
+    """E⊥ of a batch of meter readings at `rig_time_s` (`estimate`: the meter's repeatability and calibration, and
+    each reading's range, `range_u_rel[range_index]`); NoLightError when the batch is no E⊥.
+
+    A batch with a reading in the dark is no E⊥: a non-positive mean, or any underload (the meter saw less than
+    its range resolves, `IlluminanceReading.floor_a`). Dividing luminances by such an E⊥ would give BRDF values
+    of pure noise, so the batch is refused, with the figures: the run engine raises it as the meter's
+    DeviceError, then looks for a lamp that went out (and pauses for it) or ends the run with that message. A lab
+    expects the same: light on the detector, or no measurement.
+    """
+    dark = [(r, r.floor_a) for r in readings if r.floor_a is not None]
+    if dark:
+        r, floor = dark[0]
+        u_lx = underload_u(floor) * r.calibration_lx_per_a
+        raise NoLightError(f"{len(dark)} of {len(readings)} readings below the meter's floor (underload: "
+                           f"less than {floor:g} A on range {r.range_index}, E⊥ taken as "
+                           f"{r.illuminance_lx:.2g} ± {u_lx:.2g} lx): no light on the detector")
+    values = np.array([r.illuminance_lx for r in readings])
+    if not values.mean() > 0:
+        raise NoLightError(f"E⊥ reads {values.mean():g} lx (photocurrent {readings[0].photocurrent_a:g} A):"
+                           " no light on the detector")
+    range_u = [0.0 if r.range_index is None else range_u_rel[r.range_index] for r in readings]
+    return estimate(values, rig_time_s, repeatability_rel, calibration_u_rel, np.array(range_u))
 
 
 @dataclass(frozen=True)

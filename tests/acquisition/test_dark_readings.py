@@ -5,14 +5,11 @@ import math
 
 import pytest
 
-from rig.acquisition.meter_readings import illuminance_of
 from rig.acquisition.suspenders import DeviceSilent, IlluminanceJump
 from rig.config.campaign import Lamp as WarmUp
-from rig.config.rigfile import MeterConfig
-from rig.core.errors import DeviceError
 from rig.core.values import IlluminanceReading
 from rig.drivers.interfaces import IlluminanceMeter
-from rig.physics.illuminance import underload_u
+from rig.physics.illuminance import NoLightError, estimate_of_readings, underload_u
 
 CAL = 1e9
 #: A P-9710 underload on range 7 (floor 0.1 pA): the midpoint of [0, floor), flagged.
@@ -38,14 +35,22 @@ def test_an_underload_is_a_rectangle_over_zero_to_the_floor():
 
 def test_a_batch_with_an_underload_makes_no_illuminance():
     """One dark reading among lit ones is enough: an E⊥ near the floor would divide luminances into noise."""
-    meter = MeterConfig(calibration_lx_per_a=CAL)
-    est, _ = illuminance_of([LIT, LIT], 10.0, meter)
+    est = estimate_of_readings([LIT, LIT], 10.0, 0.0, 0.0, (0.0,) * 8)
     assert est.value_lx == pytest.approx(5000.0)
-    with pytest.raises(DeviceError) as err:
-        illuminance_of([LIT, DARK, DARK], 10.0, meter)
-    assert str(err.value) == ("meter: 2 of 3 readings below the meter's floor (underload: less than 1e-13 A on range "
+    with pytest.raises(NoLightError) as err:
+        estimate_of_readings([LIT, DARK, DARK], 10.0, 0.0, 0.0, (0.0,) * 8)
+    assert str(err.value) == ("2 of 3 readings below the meter's floor (underload: less than 1e-13 A on range "
                               "7, E⊥ taken as 5e-05 ± 2.9e-05 lx): no light on the detector")
-    assert not err.value.transient and not err.value.unanswered
+
+
+def test_each_reading_carries_the_u_of_its_range():
+    """The range table is indexed by each reading's range: readings on a range with a 1 % certificate u carry
+    it, fully correlated (it does not average down), readings of unknown range carry none."""
+    table = (0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0)
+    on_range = estimate_of_readings([LIT, LIT], 10.0, 0.0, 0.0, table)
+    unknown = IlluminanceReading(5000.0, 5e-6, CAL)
+    assert on_range.u_stat_lx == pytest.approx(50.0, rel=1e-9)
+    assert estimate_of_readings([unknown, unknown], 10.0, 0.0, 0.0, table).u_stat_lx == pytest.approx(0.0, abs=1e-9)
 
 
 def test_the_illuminance_suspender_does_not_clear_in_the_dark():
