@@ -2,8 +2,8 @@
 DiskFullError, one Motors and one grazing limit; the capture path chosen once (at most one isinstance on the
 calibrated path in rig/acquisition); no bench or soak module in the runtime packages; a docstring in every
 package `__init__` saying what the package owns; every event kind of events.jsonl written and read by its name in
-rig.core.events, never as a bare string. The layers and no-cycle contracts are import-linter's
-(.ci/checks)."""
+rig.core.events, never as a bare string; no test file importing another (the helpers several use are in
+tests/shared.py). The layers and no-cycle contracts are import-linter's (.ci/checks)."""
 
 import ast
 import re
@@ -166,3 +166,49 @@ if kind == "board": pass
 ''')
     assert bare_event_kinds(sample) == [(2, "filter"), (3, "watchdog_expired"), (4, "retry"), (5, "resume"),
                                         (6, "warmup_stable"), (7, "lamp_on")]
+
+
+def imported_test_modules(module: ast.Module) -> list[tuple[int, str]]:
+    """The test modules `module` imports (line, module), at any depth: `import test_x`, `from test_x import y`,
+    `from tests.folder.test_x import y`, `from .test_x import y`, `from . import test_x`."""
+    found = []
+    for node in ast.walk(module):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = ["." * node.level + node.module] if node.module else []
+            if node.level:
+                names += ["." * node.level + alias.name for alias in node.names]
+        else:
+            continue
+        found += [(node.lineno, name) for name in names
+                  if any(part.startswith("test_") for part in name.lstrip(".").split("."))]
+    return sorted(found)
+
+
+def test_no_test_file_imports_another():
+    """Issue 32: a test module imported by another runs its module-level code twice and hands its tests to a second
+    namespace, and is found only while pytest has put its folder on sys.path; the helpers several test files use
+    are in tests/shared.py, which every test folder can import (`pythonpath = ["tests"]`)."""
+    found = [f"{path.relative_to(ROOT)}:{line} {name}" for path in sorted((ROOT / "tests").rglob("*.py"))
+             if "__pycache__" not in path.parts for line, name in imported_test_modules(tree(path))]
+    assert found == []
+
+
+def test_the_test_import_check_finds_each_form():
+    sample = ast.parse('''
+from test_runner import run, small_campaign
+import json, test_rows
+def helper():
+    from test_folder import Folder
+from tests.acquisition.test_runner import events
+from .test_fit import views_around_lobes
+from . import test_predict, shared
+from shared import Folder, warm
+from repo_paths import ROOT
+import pytest_timeout
+from rig.cli.main import main
+''')
+    assert imported_test_modules(sample) == [(2, "test_runner"), (3, "test_rows"), (5, "test_folder"),
+                                             (6, "tests.acquisition.test_runner"), (7, ".test_fit"),
+                                             (8, ".test_predict")]

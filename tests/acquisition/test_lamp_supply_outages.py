@@ -12,7 +12,7 @@ import json
 from contextlib import contextmanager
 
 import pytest
-from test_runner import at_point, events, run, small_campaign, suspenders_run
+from shared import at_point, events, run, small_campaign, suspenders_run
 
 from rig.acquisition.run import run_campaign
 from rig.cli.main import _report_outcome

@@ -3,7 +3,7 @@ suspender rewinds to, and what a rewind takes back."""
 
 from dataclasses import replace
 
-from test_rows import CONSTANTS, measurement
+from shared import CONSTANTS, measurement
 
 from rig.acquisition.ledger import Ledger, Mark
 from rig.physics.illuminance import IlluminanceEstimate

@@ -4,35 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from shared import CONSTANTS, E_PERP_LX, KD, THETA_I_DEG, measurement
 
-from rig.acquisition.capture import PointCapture
-from rig.acquisition.rows import Measurement, RowConstants, bracketed_rows, brdf_row
-from rig.core.values import Window
-from rig.physics.budget import BUDGET_COLUMNS, lobe_view_u_deg
+from rig.acquisition.rows import Measurement, bracketed_rows, brdf_row
+from rig.physics.budget import BUDGET_COLUMNS
 from rig.physics.geometry import BrdfAngles
 from rig.physics.illuminance import IlluminanceEstimate
-from rig.planning.points import PlannedPoint
-
-KD = 0.5
-THETA_I_DEG = 60.0
-E_PERP_LX = 1000.0
-#: A Lambertian sample lit at θi: L = kd/π · E⊥ cos θi, so f = L / (E⊥ cos θi) = kd/π.
-LUMINANCE = KD / math.pi * E_PERP_LX * math.cos(math.radians(THETA_I_DEG))
-CONSTANTS = RowConstants(angle_u_deg=0.1, lobe_view_u_deg=lobe_view_u_deg(0.1, 0.01), grazing_limit_deg=88.0,
-                         calibration_u_rel=0.03)
-
-
-def measurement(rig_time_s: float = 5.0) -> Measurement:
-    """A point at θi = 60° whose ROI luminance is known to 1 % (noise 0.5 % of which dark 0.3 %)."""
-    capture = PointCapture(
-        luminance_cd_m2=LUMINANCE, u_luminance_cd_m2=0.01 * LUMINANCE, roi_std_cd_m2=0.02 * LUMINANCE,
-        exposures_s=(0.01, 0.04), saturated_fraction=0.0, flags=(), image_cd_m2=None,
-        roi_window=Window(10, 20, 30, 30), n_frames=4, u_noise_cd_m2=0.005 * LUMINANCE,
-        u_dark_cd_m2=0.003 * LUMINANCE, u_texture_cd_m2=0.002 * LUMINANCE, capture_time_s=0.06, n_darks=2)
-    point = PlannedPoint("s0-p1", 0, THETA_I_DEG, 0.0, 30.0, 180.0, (0.0, 60.0, 30.0, 180.0))
-    angles = BrdfAngles(np.float64(THETA_I_DEG), np.float64(0.0), np.float64(30.0), np.float64(180.0))
-    return Measurement(point, (0.0, 60.0, 30.0, 180.0), angles, capture, ("retried",), "2026-01-01T00:00:00Z",
-                       rig_time_s)
 
 
 def test_row_of_a_lambertian_point_matches_the_closed_form():

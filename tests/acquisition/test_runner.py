@@ -4,37 +4,24 @@ Faults are injected into the simulators' protocol peers (Modbus, SCPI, serial) w
 campaign runs, from the progress callback; the camera, an in-process device, is wrapped.
 """
 
-import csv
 import json
 import math
 
 import numpy as np
 import pytest
 import yaml
+from shared import at_point, events, rows, run, small_campaign, suspenders_run
 
 from repo_paths import ROOT
 from rig.acquisition.engine import Runner
 from rig.acquisition.execute import manifest_for
 from rig.cli.main import main
-from rig.config.campaign import parse_campaign
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
 from rig.data.dataset_writer import DatasetWriter
 from rig.data.images import read_luminance_exr
 from rig.planning.plan import build_plan
 from rig.simulators.rig import SimulatedRig
-
-
-def small_campaign(**extra):
-    data = {
-        "name": "small",
-        "sample": {"id": "S", "simulated_brdf": {"model": "lambert", "params": {"kd": 0.5}}},
-        "incidence": [{"phi": 0, "theta": [0, 60]}],
-        "viewing": [{"centred_on": "normal", "theta": [10, 30], "phi": [0, 90, 180, 270]}],
-        "lamp": {"warmup_min_s": 60},
-        **extra,
-    }
-    return parse_campaign(data)
 
 
 class FailingCapture:
@@ -52,51 +39,6 @@ class FailingCapture:
         if self.calls == self._at or (self._persistent and self.calls > self._at):
             raise self._error
         return self._camera.capture(exposure_s, window)
-
-
-def run(tmp_path, campaign, camera_fault=None, inject=None):
-    """Run `campaign`; `inject(peers, n_done)` is called after every point."""
-    rig = RigConfig()
-    plan = build_plan(campaign, rig)
-    truth = campaign.sample.simulated_brdf
-    writer = DatasetWriter(tmp_path / "ds", {"campaign": {"name": campaign.name}})
-    with SimulatedRig(rig, truth.model, truth.params) as sim:
-        if camera_fault is not None:
-            sim.devices.camera = camera_fault(sim.devices.camera)
-        progress = (lambda p: inject(sim.peers, p.done)) if inject else None
-        runner = Runner(campaign, plan, sim.devices, writer, rig, progress=progress)
-        try:
-            status, error = runner.run(), None
-        except Exception as exc:
-            status, error = "raised", exc
-        sim.world.clock.sleep(1.0)        # a stopped axis settles; one still running would not be done
-        moving = [ax.name for ax in (*sim.devices.stage.axes, *sim.devices.arm.axes) if ax.is_moving()]
-        lamp_on = sim.world.lamp.output_on
-    writer.close()
-    return status, error, runner, plan, lamp_on, moving
-
-
-def rows(folder):
-    with open(folder / "brdf.csv", newline="") as fh:
-        return list(csv.DictReader(fh))
-
-
-def events(folder):
-    return [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
-
-
-def at_point(n, action):
-    """An inject callback that runs `action(peers)` once, after the n-th point.
-
-    Progress is also reported on retries, with the same count: fire only once.
-    """
-    fired = []
-
-    def inject(peers, done):
-        if done == n and not fired:
-            fired.append(done)
-            action(peers)
-    return inject
 
 
 def assert_failed_cleanly(tmp_path, runner, plan, lamp_on, moving, message):
@@ -187,17 +129,6 @@ def test_lamp_burnout_pauses_then_stops_cleanly_naming_the_lamp(tmp_path):
     assert kinds.index("suspended") < kinds.index("suspend_timeout") < kinds.index("failed")
 
 
-def suspenders_run(tmp_path, inject, campaign=None):
-    """A run with a fault injected after point 6 and the given action when the run pauses: its events, its runner."""
-    campaign = campaign or small_campaign(incidence=[{"phi": 0, "theta": [0, 30, 60]}])
-    status, error, runner, plan, lamp_on, moving = run(tmp_path, campaign, inject=inject)
-    assert status == "complete", error
-    got = [r["point_id"] for r in rows(tmp_path / "ds")]
-    assert sorted(got) == sorted(p.point_id for p in plan.points)        # each point once
-    assert not lamp_on and not moving
-    return events(tmp_path / "ds"), runner
-
-
 @pytest.mark.parametrize("burnt_after", [6, 7])
 def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path, burnt_after):
     """The lamp is checked every few seconds of rig time, not before every point: a burn-out mid-series still
@@ -220,7 +151,6 @@ def test_lamp_burnout_then_replacement_resumes_and_retakes(tmp_path, burnt_after
     assert discarded["point_ids"] == pending_before[-len(discarded["point_ids"]):]    # the last ones measured
     assert next(e for e in ev if e["event"] == "resumed")["waited_s"] >= 200
     lit_rows_only(tmp_path / "ds", runner, state["burnt"], state["new"])
-
 
 
 def test_a_lamp_out_just_before_an_illuminance_reading_pauses_instead_of_failing(tmp_path):

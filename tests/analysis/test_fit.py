@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from shared import views_around_lobes
 
 from rig.analysis.fit import (
     UNUSABLE_FLAGS,
@@ -25,7 +26,6 @@ from rig.cli.fit import add_subcommand
 from rig.cli.main import main
 from rig.config.campaign import load_campaign
 from rig.data.dataset_reader import load
-from rig.physics import geometry as geo
 from rig.physics.brdf_models import MODELS
 
 #: Spieringhs et al. 2023 Table 7, RetroPhong per road marking.
@@ -46,22 +46,6 @@ def simulated(tmp_path_factory, request):
         assert main(["run", str(campaigns / f"fit-{rm}.yaml"), "--out", str(folder), "--quiet"]) == 0
         out[rm] = load(folder)
     return out
-
-
-def views_around_lobes(offsets_deg, incidences=((0, 0), (40, 0), (60, 0), (70, 0), (80, 0), (85, 0), (80, 30)),
-                       azimuths_deg=tuple(range(0, 360, 60))):
-    """(wi, wo) pairs: rings of views at `offsets_deg` (and `azimuths_deg` about each centre) around the incidence and
-    the mirror direction."""
-    th, ph = np.meshgrid(np.radians(offsets_deg), np.radians(azimuths_deg), indexing="ij")
-    wis, wos = [], []
-    for theta_i, phi_i in incidences:
-        wi = geo.sph_to_vec(np.radians(theta_i), np.radians(phi_i))
-        for centre in (wi, geo.mirror_direction(wi)):
-            wo = geo.centre_pattern(th.ravel(), ph.ravel(), centre)
-            wo = wo[wo[:, 2] > np.cos(np.radians(88))]
-            wis.append(np.broadcast_to(wi, wo.shape))
-            wos.append(wo)
-    return np.concatenate(wis), np.concatenate(wos)
 
 
 WI, WO = views_around_lobes([1, 3, 6, 10, 20, 35, 50])

@@ -9,7 +9,7 @@ population-then-local fit this replaced ended on the plateau where the forward l
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
-from test_fit import views_around_lobes
+from shared import views_around_lobes
 
 from rig.analysis.fit import ParamSpace, fit
 from rig.analysis.fit_search import distinct

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared import PHI_O, THETA_I, THETA_O, dataset, smooth_brdf
 
 from rig.analysis.fit import fit
 from rig.analysis.predict import (
@@ -19,31 +20,6 @@ from rig.analysis.predict import (
 )
 from rig.cli.main import main
 from rig.data.alta import write_alta
-from rig.data.dataset_reader import Dataset
-from rig.physics.geometry import sph_to_vec
-
-THETA_I = [0.0, 20.0, 40.0, 60.0]
-THETA_O = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0]
-PHI_O = [0.0, 30.0, 60.0, 90.0, 120.0, 150.0, 180.0]
-
-
-def smooth_brdf(theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg):
-    """A smooth, isotropic, positive BRDF with a broad forward lobe (a few % change per 10°)."""
-    wi = sph_to_vec(np.radians(theta_i_deg), np.radians(phi_i_deg))
-    wo = sph_to_vec(np.radians(theta_o_deg), np.radians(phi_o_deg))
-    mirror = wi * np.array([-1.0, -1.0, 1.0])
-    return 0.2 * (1.0 + 0.5 * np.einsum("...i,...i->...", wo, mirror) ** 2)
-
-
-def dataset(value=smooth_brdf, u_rel=0.01, phi_i=0.0, phi_o_deg=PHI_O) -> Dataset:
-    ti, to, po = (a.ravel() for a in np.meshgrid(THETA_I, THETA_O, phi_o_deg, indexing="ij"))
-    pi_ = np.full(ti.shape, phi_i)
-    f = value(ti, pi_, to, po)
-    columns = {"theta_i_deg": ti, "phi_i_deg": pi_, "theta_o_deg": to, "phi_o_deg": po, "brdf_per_sr": f,
-               "u_brdf_per_sr": u_rel * f, "series": np.searchsorted(THETA_I, ti).astype(float)}
-    n = len(f)
-    return Dataset(path=Path("mem"), manifest={}, columns=columns, point_id=[f"p{k}" for k in range(n)],
-                   flags=[()] * n, time_utc=[""] * n, skipped=[], header=list(columns))
 
 
 def test_the_interpolant_returns_the_measurements_where_they_were_taken():

@@ -4,7 +4,7 @@ measured paper campaign against its closed-form truth, and on a closed-form data
 
 import numpy as np
 import pytest
-from test_predict import dataset, smooth_brdf
+from shared import dataset, smooth_brdf
 
 from rig.analysis.incidence_views import containing_triangle, mirrored_views
 from rig.analysis.predict import InterpolatingPredictor, measured_domain

@@ -12,7 +12,6 @@ are bounded by rig_process.HANG_S as a hang guard, never asserted on.
 from __future__ import annotations
 
 import os
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -20,6 +19,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from shared import Folder, warm
 
 from browser_support import requested_urls
 from repo_paths import TEST_CAMPAIGNS
@@ -175,9 +175,6 @@ def test_with_a_token_the_printed_address_gives_a_working_page(browser, tmp_path
 def test_the_page_shows_the_run_as_soon_as_it_loads(browser, tmp_path):
     """Issue 35: a screenshot taken at load showed "CONNECTING…" and empty plots; the server now puts the state in
     the page. The series buttons say θi and φi (they said "θi 70.0°" for three series)."""
-    sys.path.insert(0, str(Path(__file__).parents[1] / "monitor"))       # the monitor tests' dataset folders
-    from test_folder import Folder, warm
-
     f = Folder(tmp_path / "run")
     warm(f)
     f.row("01-001", 105.0, theta_o=30.0, phi_o=180.0)

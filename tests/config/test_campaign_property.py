@@ -8,14 +8,13 @@ the schema when a bound changes.
 from __future__ import annotations
 
 import math
-import types
-from typing import Any, Literal, Union, get_args, get_origin
+from typing import Any
 
-import annotated_types
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel
+from shared import _base_type, _bounds, field_strategy
 
 from rig.config.campaign import (
     Campaign,
@@ -28,55 +27,13 @@ from rig.config.campaign import (
     check_campaign_for_rig,
     parse_campaign,
 )
-from rig.config.capture import MODES, CaptureSettings
+from rig.config.capture import CaptureSettings
 from rig.config.rigfile import RigConfig
 from rig.planning.plan import build_plan, estimate_rig_time_s
 
 SECTIONS: dict[str, type[BaseModel]] = {"capture": Capture, "illuminance": Illuminance, "lamp": Lamp,
                                         "limits": Limits, "suspenders": Suspenders}
 RIG = RigConfig()
-#: Fields whose allowed values are not in their type (validated by a function).
-CHOICES = {(Capture, "mode"): MODES}
-
-
-def _bounds(field) -> dict[str, float]:
-    out = {}
-    for m in field.metadata:
-        for name in ("ge", "gt", "le", "lt"):
-            if isinstance(m, getattr(annotated_types, name.capitalize())):
-                out[name] = getattr(m, name)
-    return out
-
-
-def _base_type(annotation: Any) -> tuple[Any, bool]:
-    """(the annotation without None, whether None is allowed)."""
-    if get_origin(annotation) in (Union, types.UnionType):
-        args = [a for a in get_args(annotation) if a is not type(None)]
-        return args[0], len(args) < len(get_args(annotation))
-    return annotation, False
-
-
-def field_strategy(model: type[BaseModel], name: str) -> st.SearchStrategy:
-    """Values of a field inside its declared bounds (cross-field rules aside)."""
-    if (model, name) in CHOICES:
-        return st.sampled_from(CHOICES[model, name])
-    field = model.model_fields[name]
-    kind, optional = _base_type(field.annotation)
-    b = _bounds(field)
-    if get_origin(kind) is Literal:
-        strategy = st.sampled_from(get_args(kind))
-    elif kind is bool:
-        strategy = st.booleans()
-    elif kind is int:
-        lo = b.get("ge", b.get("gt", -10 ** 6 - 1) + 1)
-        hi = b.get("le", b.get("lt", 10 ** 6 + 1) - 1)
-        strategy = st.integers(lo, hi)
-    elif kind is float:
-        strategy = st.floats(min_value=b.get("ge", b.get("gt")), max_value=b.get("le", b.get("lt")),
-                             exclude_min="gt" in b, exclude_max="lt" in b, allow_nan=False, allow_infinity=False)
-    else:
-        raise AssertionError(f"no strategy for {model.__name__}.{name}: {field.annotation}")
-    return st.one_of(st.none(), strategy) if optional else strategy
 
 
 def section_strategy(model: type[BaseModel]) -> st.SearchStrategy[dict]:

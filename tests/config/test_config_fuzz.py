@@ -18,7 +18,7 @@ from typing import Any
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_campaign_property import field_strategy
+from shared import field_strategy
 
 from repo_paths import ROOT
 from rig.cli.main import main

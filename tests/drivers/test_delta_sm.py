@@ -10,29 +10,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import pytest
+from shared import DELTA_SM_CLOSE as CLOSE
+from shared import DELTA_SM_CONNECT as CONNECT
+from shared import DELTA_SM_IDN as IDN
+from shared import DELTA_SM_OK as OK
 
 from rig.core.errors import DeviceError
 from rig.drivers.delta_sm import DeltaSM, plain
 from rig.drivers.retry import RetryPolicy
 
-IDN = "DELTA ELEKTRONIKA BV,SM500-CP-90,000010207248,H0_P0150,0"      # manual §5.1.1
-OK = ("SYSTem:ERRor?", "0,None")
-CONNECT = [("*IDN?", IDN),
-           ("SYSTem:COMmunicate:WATchdog?", "-1"),                   # off after power-on
-           ("SOURce:CURrent:MAXimum?", "90"),
-           ("SOURce:VOLtage:MAXimum?", "500"),
-           ("*CLS", None), OK,                                         # the session's settings (_configure)
-           ("SYSTem:REMote:CV REMote", None), OK,
-           ("SYSTem:REMote:CC REMote", None), OK,
-           ("SYSTem:LIMits:CURrent 4.6000,ON", None), OK,
-           ("SYSTem:LIMits:CURrent?", "4.6000"),
-           ("SYSTem:LIMits:VOLtage 14.0000,ON", None), OK,              # the lamp's limit, not the supply's 500 V
-           ("SYSTem:LIMits:VOLtage?", "14.0000"),
-           ("SOURce:VOLtage 14.0000", None), OK,
-           ("SYSTem:COMmunicate:WATchdog SET,1000", None), OK]
-CLOSE = [("SYSTem:COMmunicate:WATchdog STOP", None), OK,
-         ("SYSTem:REMote:CV LOCal", None), OK,
-         ("SYSTem:REMote:CC LOCal", None), OK]
 OPTIONS = dict(current_a=4.17, current_limit_a=4.6, watchdog_s=1.0, ramp_s=0.0, voltage_limit_v=14.0)
 
 
@@ -44,8 +30,6 @@ def wire(exchanges: list[tuple[str, str | None]]) -> list[tuple[bytes, bytes | N
 
 def lines(exchanges: list[tuple]) -> list[bytes]:
     return [line for line, _ in exchanges]
-
-
 
 
 @pytest.fixture

@@ -302,7 +302,9 @@ def test_switching_off_ramps_the_current_down_before_output_off(peer, world, lam
 def test_the_peer_passes_the_drivers_replays():
     """The exchanges the driver's in-memory tests script (from the manual's examples) are what the rebuilt
     peer answers, line for line, when it is configured as the manual's example supply."""
-    from test_delta_sm import CLOSE, CONNECT, IDN
+    from shared import DELTA_SM_CLOSE as CLOSE
+    from shared import DELTA_SM_CONNECT as CONNECT
+    from shared import DELTA_SM_IDN as IDN
 
     maker, model, serial, firmware, _ = IDN.split(",")
     peer = DeltaSMPeer(SimWorld(RigConfig(), get_model("lambert"), {"kd": 0.5}), model=model, serial=serial,

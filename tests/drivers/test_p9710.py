@@ -13,21 +13,16 @@ and error, and the driver against the peer with every fault, are in test_p9710_i
 """
 
 import pytest
+from shared import P9710_CONNECT as CONNECT
+from shared import P9710_READING as READING
+from shared import P9710_TD0 as TD0
 
 from rig.core.errors import DeviceError
 from rig.drivers.p9710 import ERROR_BITS, P9710, RANGE_FLOOR_A, UNDERLOAD, error_meaning
 
 CAL = 1.0e9
-#: Acknowledge characters off (manual §15.3.9 `TD0`), a real unit's identity exchanges (captured), then autorange
-#: on and 0.2 s integration (manual), each setting acked by a bare LF.
-TD0 = (b"TD0\n", b"\n")
-CONNECT = [TD0, (b"GI\n", b"P9710 V5.6\n"), (b"TT\n", b"1875\n"), (b"GK\n", b"VL__\n"), (b"SB1\n", b"\n"),
-           (b"SN2000\n", b"\n")]
 #: The manual's identity form (§15.3.9: `GI` answers `P-9710 x.x`).
 CONNECT_MANUAL = [TD0, (b"GI\n", b"P-9710 4.7\n")] + CONNECT[2:]
-READING = (b"MA;GR\n", b"+1.2345E-06;3\n")
-
-
 
 
 def connect(open_port, clock, events, **options) -> P9710:

@@ -12,7 +12,8 @@ import time
 
 import pytest
 import serial
-from test_p9710 import CONNECT, READING
+from shared import P9710_CONNECT as CONNECT
+from shared import P9710_READING as READING
 
 from rig.config.rigfile import MeterConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError

@@ -13,6 +13,7 @@ import re
 
 import pytest
 from conftest import Exchange, Replay, ReplayPort
+from shared import ZABER_CONNECT as CONNECT
 
 from rig.config.rigfile import AxisConfig
 from rig.core.errors import DeviceError
@@ -30,14 +31,6 @@ CONNECT_UNHOMED = [
     (b"/1 1 get accel:06\n", b"@01 1 OK IDLE WR 205\r\n"),
     (b"/1 1 set accel 21:77\n", b"@01 1 OK IDLE WR 0\r\n"),
     (b"/1 1 warnings:F5\n", b"@01 1 OK IDLE WR 01 WR:43\r\n"),
-]
-#: The same axis once homed, its speed and acceleration already the rig file's: nothing is written to its flash
-#: (replies with their checksums, as a device with checksums on sends them).
-CONNECT = [
-    (b"/1 1 get limit.cycle.dist:BF\n", b"@01 1 OK IDLE -- 1536000:5D\r\n"),
-    (b"/1 1 get maxspeed:A7\n", b"@01 1 OK IDLE -- 104858:82\r\n"),
-    (b"/1 1 get accel:06\n", b"@01 1 OK IDLE -- 21:59\r\n"),
-    (b"/1 1 warnings:F5\n", b"@01 1 OK IDLE -- 00:5C\r\n"),
 ]
 GET_POS = b"/1 1 get pos:AC\n"
 MOVE_30 = b"/1 1 move abs 128000:06\n"          # 30° = 128 000 µsteps
@@ -65,8 +58,6 @@ class LinePort(ReplayPort):
         first, rest = self._pending.split(b"\n", 1)
         self._pending = rest or None
         return first + b"\n"
-
-
 
 
 def chain(open_port, clock, events) -> ZaberChain:

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 import serial
-from test_zaber import CONNECT
+from shared import ZABER_CONNECT as CONNECT
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError

@@ -12,92 +12,15 @@ import os
 import socket
 import subprocess
 import sys
-from datetime import UTC, datetime, timedelta
-from pathlib import Path
 
 import pytest
+from shared import WALL_PER_RIG, Folder, row, utc, warm
 
-from repo_paths import CAMPAIGNS
-from rig.config.campaign import load_campaign
-from rig.config.rigfile import simulated_rig
-from rig.data.dataset_format import BRDF_COLUMNS, FORMAT, csv_line
+from rig.data.dataset_format import BRDF_COLUMNS, csv_line
 from rig.monitor.folder import FolderFollower
 from rig.monitor.records import point_record, summarize_event
 
 TO_MEASURE = 62
-#: Wall seconds per rig second of the hand-written runs (a paced simulated rig).
-WALL_PER_RIG = 0.1
-START = datetime(2026, 1, 1, tzinfo=UTC)
-
-
-def utc(rig_s: float) -> str:
-    return (START + timedelta(seconds=rig_s * WALL_PER_RIG)).isoformat(timespec="milliseconds").replace("+00:00", "Z")
-
-
-def manifest(**changes) -> dict:
-    return {"format": FORMAT, "format_version": "1.1", "created_utc": utc(0), "status": "running",
-            "campaign": {"name": "quick", "content": load_campaign(CAMPAIGNS / "quick.yaml").model_dump(mode="json")},
-            "sample": {"id": "RM1-sim"}, "rig": {"name": "simulated", "simulated": True,
-                                                 "config": simulated_rig().model_dump(mode="json")},
-            "software": {"name": "rig", "version": "0"}, "counts": {}, **changes}
-
-
-def row(point_id: str, rig_s: float, theta_o: float = 30.0, phi_o: float = 180.0, flags: str = "") -> dict:
-    """A brdf.csv row at θi = 30°, φi = 0° (the numbers are plausible, not simulated)."""
-    values: dict[str, object] = {c: 0.001 for c in BRDF_COLUMNS}
-    values.update(point_id=point_id, series=1, theta_i_deg=30.0, phi_i_deg=0.0, theta_o_deg=theta_o, phi_o_deg=phi_o,
-                  brdf_per_sr=0.2, u_brdf_per_sr=0.002, exposures_s="0.01", flags=flags, time_utc=utc(rig_s),
-                  rig_time_s=rig_s, filter_position=0, illuminance_interpolated=1)
-    return values
-
-
-class Folder:
-    """A dataset folder written the way rig.data.dataset_writer writes one."""
-
-    def __init__(self, path: Path, **manifest_changes):
-        self.path = path
-        path.mkdir()
-        self.set_manifest(**manifest_changes)
-        (path / "skipped.csv").write_text("point_id,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,reason\n"
-                                          "00-001,0,0,89,0,below_horizon\n00-002,0,0,88,0,beyond_max_view_theta\n"
-                                          "00-003,0,0,87,0,below_horizon\n")
-        self.append("brdf.csv", csv_line(BRDF_COLUMNS))
-        (path / ".lock").write_text(f"pid {os.getpid()} host {socket.gethostname()}\n")   # the writer: alive
-        self.follower = FolderFollower(path)
-
-    def set_manifest(self, **changes) -> None:
-        tmp = self.path / "dataset.json.tmp"
-        tmp.write_text(json.dumps(manifest(**changes)))
-        tmp.replace(self.path / "dataset.json")
-
-    def append(self, name: str, text: str) -> None:
-        with (self.path / name).open("a") as fh:
-            fh.write(text)
-
-    def event(self, kind: str, rig_s: float | None = None, **fields) -> None:
-        record = {"time_utc": utc(rig_s or 0.0), "event": kind, **fields}
-        if rig_s is not None:
-            record["rig_time_s"] = rig_s
-        self.append("events.jsonl", json.dumps(record) + "\n")
-
-    def pending(self, point_id: str, rig_s: float) -> None:
-        self.event("point_pending", row=row(point_id, rig_s))
-
-    def row(self, point_id: str, rig_s: float, **kw) -> None:
-        r = row(point_id, rig_s, **kw)
-        self.append("brdf.csv", csv_line(r[c] for c in BRDF_COLUMNS))
-
-    def look(self, since: int = 0) -> dict:
-        self.follower.update()
-        return self.follower.snapshot(since)
-
-
-def warm(f: Folder) -> None:
-    """Connected, lamp on at rig time 5 s, warm at 100 s, E⊥ read."""
-    f.event("devices", identities={"lamp": "SM15K"}, simulated=True)
-    f.event("lamp_on", 5.0, current_a=4.17, voltage_v=11.6)
-    f.event("warmup_stable", 100.0, illuminance_lx=5000.0, change_rel=0.001, warmup_s=95.0, lamp_voltage_v=12.0)
-    f.event("illuminance", 101.0, illuminance_normal_lx=4990.0, u_lx=4.0, readings=5)
 
 
 def test_a_run_is_followed_line_by_line(tmp_path):

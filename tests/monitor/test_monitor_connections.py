@@ -26,7 +26,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_folder import Folder, warm
+from shared import Folder, warm
 
 from rig.monitor.front import Limits
 from rig.monitor.server import make_server, page_url

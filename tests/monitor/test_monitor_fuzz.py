@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_folder import Folder, row, utc, warm
+from shared import Folder, row, utc, warm
 
 from rig.data.dataset_format import BRDF_COLUMNS, csv_line
 from rig.monitor import server as server_module

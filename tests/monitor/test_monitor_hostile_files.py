@@ -11,7 +11,7 @@ import threading
 from typing import Any
 
 import pytest
-from test_folder import Folder, row, utc, warm
+from shared import Folder, row, utc, warm
 
 from rig.data.dataset_format import BRDF_COLUMNS, csv_line
 from rig.monitor.files import MAX_DEPTH, MAX_LINE_BYTES

@@ -5,7 +5,7 @@ warm-up's readings, expected rest and an ETA that includes it."""
 from __future__ import annotations
 
 import pytest
-from test_folder import Folder
+from shared import Folder
 
 EXPECTED = {"seconds": 400.0, "source": "a test's"}
 

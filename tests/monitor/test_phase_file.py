@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 
-from test_folder import Folder, warm
+from shared import Folder, warm
 
 from rig.acquisition.run import run_campaign
 from rig.config.campaign import parse_campaign

@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_folder import Folder, warm
+from shared import Folder, warm
 
 from rig.cli import monitor as cli
 from rig.core.exits import EXIT_BAD_INPUT
