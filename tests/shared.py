@@ -318,6 +318,18 @@ def field_strategy(model: type[BaseModel], name: str) -> st.SearchStrategy:
 
 
 # ---------------------------------------------------------------------------------------------------------------------
+# Reply timeouts of the drivers' integration tests over real ptys and sockets (tests/drivers/test_*_integration.py).
+
+#: Where every reply comes: long, so that a reply slowed by a loaded machine (CI's two cores under xdist) is not
+#: taken for a lost one; a retry event would break those tests' exact event lists. It costs nothing: a reply that
+#: comes ends the wait.
+ANSWERED_S = 10.0
+#: Where replies are lost on purpose (an injected silence or a cut-short reply): short, so that each lost reply costs
+#: little wall time.
+SILENCE_S = 0.2
+
+
+# ---------------------------------------------------------------------------------------------------------------------
 # Driver byte exchanges, the driver's in-memory replays and the rebuilt peer's answers alike (named by device: each
 # device has its CONNECT). Provenance of the bytes is given per device.
 

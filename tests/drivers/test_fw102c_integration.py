@@ -7,6 +7,7 @@ src/odemis/driver/tlfw.py records; its own replays are in tests/simulators/test_
 from types import SimpleNamespace
 
 import pytest
+from shared import ANSWERED_S, SILENCE_S
 
 from rig.config.rigfile import RigConfig
 from rig.core.errors import DeviceError
@@ -29,8 +30,8 @@ def peer(world, no_leaks):
         yield p
 
 
-def connect(path, world, events) -> FW102C:
-    wheel = FW102C(path, clock=world.clock, timeout_s=0.2)
+def connect(path, world, events, timeout_s=ANSWERED_S) -> FW102C:
+    wheel = FW102C(path, clock=world.clock, timeout_s=timeout_s)
     wheel.events = lambda kind, **fields: events.append((kind, fields))
     return wheel
 
@@ -38,6 +39,14 @@ def connect(path, world, events) -> FW102C:
 @pytest.fixture
 def wheel(peer, world, events):
     w = connect(peer.path, world, events)
+    yield w
+    w.close()
+
+
+@pytest.fixture
+def silent_wheel(peer, world, events):
+    """A wheel whose lost replies time out quickly (SILENCE_S)."""
+    w = connect(peer.path, world, events, SILENCE_S)
     yield w
     w.close()
 
@@ -58,7 +67,7 @@ def test_connect_identifies_and_sets_high_speed_with_sensors_off(world, events, 
 
 
 def test_from_rig_connects_at_once(peer, world, events):
-    wheel = FW102C.from_rig(clock=world.clock, settings=SimpleNamespace(), address=peer.path, timeout_s=0.2)
+    wheel = FW102C.from_rig(clock=world.clock, settings=SimpleNamespace(), address=peer.path, timeout_s=ANSWERED_S)
     try:
         assert wheel.positions == 6 and wheel.position() == 1
     finally:
@@ -103,10 +112,10 @@ def test_a_position_the_wheel_lacks_is_refused(wheel, peer):
 
 
 @pytest.mark.parametrize("fault", ["no_reply", "garbled"])
-def test_a_spoilt_position_reply_is_retried(wheel, peer, events, fault):
-    wheel.move_to(3)
+def test_a_spoilt_position_reply_is_retried(silent_wheel, peer, events, fault):
+    silent_wheel.move_to(3)
     peer.inject(fault)
-    assert wheel.position() == 3
+    assert silent_wheel.position() == 3
     assert kinds(events) == ["retry", "reconnect"]
 
 
@@ -131,9 +140,9 @@ def test_a_stuck_wheel_is_a_persistent_error(wheel, peer, world, events):
     assert peer.position == 3
 
 
-def test_a_silent_wheel_is_unanswered_after_the_retries(wheel, peer, events):
+def test_a_silent_wheel_is_unanswered_after_the_retries(silent_wheel, peer, events):
     peer.inject("no_reply", count=20)
     with pytest.raises(DeviceError, match=r"^attenuator: pos\? failed 3 times") as err:
-        wheel.position()
+        silent_wheel.position()
     assert err.value.unanswered
     assert kinds(events) == ["retry", "reconnect_failed", "retry", "reconnect_failed"]

@@ -4,6 +4,7 @@ RTU-over-socket: moves, read-backs, homing, alarms and every injected fault."""
 from types import SimpleNamespace
 
 import pytest
+from shared import ANSWERED_S, SILENCE_S
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
 from rig.core.errors import DeviceError
@@ -30,7 +31,7 @@ def make_world() -> SimWorld:
                     get_model("lambert"), {"kd": 0.5})
 
 
-def connect(url, world, name, axes, *, device_ids=(1, 2), timeout_s=0.5):
+def connect(url, world, name, axes, *, device_ids=(1, 2), timeout_s=ANSWERED_S):
     link = ModbusDriveLink(url, AZ, name=name, clock=world.clock, timeout_s=timeout_s,
                            retry=RetryPolicy(attempts=3, backoff_s=0.05))
     events = []
@@ -48,7 +49,7 @@ def _rig(framer, timeout_s):
 
 @pytest.fixture(params=["tcp", "rtu"])
 def rig(request, no_leaks):
-    r = _rig(request.param, timeout_s=0.5)
+    r = _rig(request.param, timeout_s=ANSWERED_S)
     yield r
     r.link.close()
     r.peer.stop()
@@ -57,7 +58,7 @@ def rig(request, no_leaks):
 @pytest.fixture
 def faulty(request, no_leaks):
     """Short timeouts, so that injected silences cost little wall time; TCP unless parametrised."""
-    r = _rig(getattr(request, "param", "tcp"), timeout_s=0.2)
+    r = _rig(getattr(request, "param", "tcp"), timeout_s=SILENCE_S)
     yield r
     r.link.close()
     r.peer.stop()

@@ -12,6 +12,7 @@ import time
 
 import pytest
 import serial
+from shared import ANSWERED_S, SILENCE_S
 from shared import P9710_CONNECT as CONNECT
 from shared import P9710_READING as READING
 
@@ -24,7 +25,8 @@ from rig.simulators.p9710_peer import P9710Peer, range_for
 from rig.simulators.world import SimWorld
 
 CAL = 1.0e9
-#: The reply timeout of a reading: 0.2 s integration + 0.05 s autorange + 0.2 s link.
+#: The reply timeout of a reading where replies are lost: 0.2 s integration + 0.05 s autorange + 0.2 s link
+#: (SILENCE_S).
 READ_TIMEOUT = "0.45 s"
 #: Each transient fault and what the driver's error says the meter answered (a regex).
 FAULT_REPLIES = pytest.mark.parametrize("fault, reply", [
@@ -60,8 +62,8 @@ def peer(world, no_leaks):
 
 
 
-def connect(path, world, events, cal=CAL) -> P9710:
-    meter = P9710(path, calibration_lx_per_a=cal, clock=world.clock, timeout_s=0.2, integration_s=0.2,
+def connect(path, world, events, cal=CAL, timeout_s=ANSWERED_S) -> P9710:
+    meter = P9710(path, calibration_lx_per_a=cal, clock=world.clock, timeout_s=timeout_s, integration_s=0.2,
                   autorange_s=0.05)
     meter.events = lambda kind, **fields: events.append((kind, fields))
     return meter
@@ -70,6 +72,14 @@ def connect(path, world, events, cal=CAL) -> P9710:
 @pytest.fixture
 def meter(peer, world, events):
     m = connect(peer.path, world, events)
+    yield m
+    m.close()
+
+
+@pytest.fixture
+def silent_meter(peer, world, events):
+    """A meter whose lost replies time out quickly (SILENCE_S)."""
+    m = connect(peer.path, world, events, timeout_s=SILENCE_S)
     yield m
     m.close()
 
@@ -188,9 +198,9 @@ def test_an_injected_overload_is_not_retried(meter, peer, world, events):
 
 
 @FAULT_REPLIES
-def test_each_transient_fault_costs_one_retry(meter, peer, world, events, fault, reply):
+def test_each_transient_fault_costs_one_retry(silent_meter, peer, world, events, fault, reply):
     peer.inject(fault)
-    assert meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
+    assert silent_meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
     (retry, retry_fields), (reconnect, _) = events
     assert (retry, reconnect) == ("retry", "reconnect")
     assert retry_fields["what"] == "MA;GR" and re.match(f"meter: {reply}", retry_fields["error"])
@@ -206,14 +216,14 @@ def test_a_reconnect_restores_settings_changed_at_the_front_panel(meter, peer, w
 
 
 @FAULT_REPLIES
-def test_a_lasting_fault_is_a_clean_persistent_error(meter, peer, world, events, fault, reply):
+def test_a_lasting_fault_is_a_clean_persistent_error(silent_meter, peer, world, events, fault, reply):
     peer.inject(fault, count=3)
     with pytest.raises(DeviceError) as err:
-        meter.read()
+        silent_meter.read()
     assert re.match(f"meter: MA;GR failed 3 times; last: meter: {reply}", str(err.value))
     assert err.value.device == "meter" and not err.value.transient and err.value.unanswered
     assert [kind for kind, _ in events] == ["retry", "reconnect"] * 2
-    assert meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
+    assert silent_meter.read().illuminance_lx == pytest.approx(world.illuminance_normal_lx(), rel=0.01)
 
 
 # -- the peer itself, byte for byte ----------------------------------------------------------------

@@ -14,6 +14,7 @@ from dataclasses import asdict
 
 import numpy as np
 import pytest
+from shared import ANSWERED_S
 from sim_worlds import lit_world
 
 from rig.config.rigfile import RigConfig
@@ -131,7 +132,8 @@ def test_every_read_failure_is_a_device_error_naming_the_address(reply, message,
     if reply is not None and reply.startswith(b"ERR"):
         exchanges.append((b"BYE\n", b"OK\n"))                       # the session goes on, closed politely
     with scripted_peer(exchanges, hang_up=reply == b"OK FRA") as (address, _):
-        cam = ServedCamera(address, clock=SimClock(), timeout_s=0.3)
+        # the timeout the two lost replies (short, timeout) run out; long where every byte comes (ANSWERED_S)
+        cam = ServedCamera(address, clock=SimClock(), timeout_s=0.3 if "within 0.3 s" in message else ANSWERED_S)
         with pytest.raises(DeviceError, match=f"camera: served camera at {address}: {message}") as err:
             cam.capture(0.1, Window(0, 0, 2, 2))
         assert err.value.transient is transient

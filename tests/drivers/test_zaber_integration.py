@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 import serial
+from shared import ANSWERED_S, SILENCE_S
 from shared import ZABER_CONNECT as CONNECT
 
 from rig.config.rigfile import AxisConfig, RigConfig, SimulationConfig
@@ -41,21 +42,31 @@ def make_world() -> SimWorld:
 
 
 
-def connect(peer, world, events, **options):
-    arm = ZaberChain.from_rig(clock=world.clock, settings=ARM, name="arm", address=peer.url, timeout_s=0.2,
+def connect(peer, world, events, timeout_s=ANSWERED_S, **options):
+    arm = ZaberChain.from_rig(clock=world.clock, settings=ARM, name="arm", address=peer.url, timeout_s=timeout_s,
                               **options)
     arm.axes[0].controller.retry = RetryPolicy(attempts=3, backoff_s=0.05)
     arm.axes[0].controller.events = lambda kind, **fields: events.append((kind, fields))
     return arm
 
 
-@pytest.fixture(params=["tcp", "pty"])
-def rig(request, no_leaks):
+def homed_chain(medium, timeout_s):
     world, events = make_world(), list[tuple[str, dict]]()
-    with ZaberPeer(world, CHAIN, medium=request.param) as peer:
-        arm = connect(peer, world, events, home=True)
+    with ZaberPeer(world, CHAIN, medium=medium) as peer:
+        arm = connect(peer, world, events, timeout_s, home=True)
         yield SimpleNamespace(world=world, peer=peer, arm=arm, events=events)
         arm.close()
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def rig(request, no_leaks):
+    yield from homed_chain(request.param, ANSWERED_S)
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def silent_rig(request, no_leaks):
+    """The chain with lost replies timing out quickly (SILENCE_S)."""
+    yield from homed_chain(request.param, SILENCE_S)
 
 
 def test_home_move_wait_read_back(rig):
@@ -135,21 +146,21 @@ def inject(peer, fault, count=1):
 
 
 @pytest.mark.parametrize("fault", ZABER_FAULTS.transient)
-def test_each_transient_fault_costs_one_retry(rig, fault):
-    inject(rig.peer, fault)
-    assert rig.arm.axes[0].position_deg() == pytest.approx(0.0, abs=HALF)         # homed
-    assert [kind for kind, _ in rig.events] == ["retry", "reconnect"]
-    rig.arm.move_to(5.0, 5.0)
+def test_each_transient_fault_costs_one_retry(silent_rig, fault):
+    inject(silent_rig.peer, fault)
+    assert silent_rig.arm.axes[0].position_deg() == pytest.approx(0.0, abs=HALF)         # homed
+    assert [kind for kind, _ in silent_rig.events] == ["retry", "reconnect"]
+    silent_rig.arm.move_to(5.0, 5.0)
 
 
 @pytest.mark.parametrize("fault", ZABER_FAULTS.transient)
-def test_a_lasting_fault_is_a_clean_persistent_error(rig, fault):
-    inject(rig.peer, fault, count=3)
+def test_a_lasting_fault_is_a_clean_persistent_error(silent_rig, fault):
+    inject(silent_rig.peer, fault, count=3)
     with pytest.raises(DeviceError, match=r"^arm_azimuth: /1 1 get pos:AC failed 3 times; last: ") as err:
-        rig.arm.axes[0].position_deg()
+        silent_rig.arm.axes[0].position_deg()
     assert err.value.unanswered and not err.value.transient
-    assert [kind for kind, _ in rig.events] == ["retry", "reconnect"] * 2
-    rig.arm.move_to(5.0, 5.0)                    # the link recovers
+    assert [kind for kind, _ in silent_rig.events] == ["retry", "reconnect"] * 2
+    silent_rig.arm.move_to(5.0, 5.0)                    # the link recovers
 
 
 def test_a_device_without_cycle_distance_uses_the_configured_microstep_size(no_leaks):
