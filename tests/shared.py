@@ -14,14 +14,17 @@ import math
 import os
 import socket
 import types
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import Any, Literal, Union, get_args, get_origin
+from typing import Any, Literal, NoReturn, Union, get_args, get_origin
 
 import annotated_types
 import numpy as np
 from hypothesis import strategies as st
 from pydantic import BaseModel
+from pymodbus.client import ModbusTcpClient
 
 from repo_paths import CAMPAIGNS
 from rig.acquisition.capture import PointCapture
@@ -315,6 +318,124 @@ def field_strategy(model: type[BaseModel], name: str) -> st.SearchStrategy:
     else:
         raise AssertionError(f"no strategy for {model.__name__}.{name}: {field.annotation}")
     return st.one_of(st.none(), strategy) if optional else strategy
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# The drivers' in-memory protocol replay (PyMeasure's `expected_protocol`): the fixture is in tests/drivers/conftest.py
+# (its docstring says how a script is written); test_zaber.py builds a replay of its own for a port that hands out
+# a reply line by line.
+
+Exchange = tuple[bytes, bytes | None]
+
+
+@dataclass
+class Replay:
+    """The script, and what the driver did with it (`written`: each request with the rig time it came)."""
+
+    exchanges: list[Exchange]
+    now: Callable[[], float] = lambda: 0.0
+    written: list[tuple[bytes, float]] = field(default_factory=list)
+    #: The port's timeout (s) at each read: what the driver was prepared to wait for each reply.
+    read_timeouts: list[float | None] = field(default_factory=list)
+    opens: int = 0
+    _reply: bytes | None = None
+    _problems: list[str] = field(default_factory=list)
+
+    # -- the script ------------------------------------------------------------------------------
+    def request(self, data: bytes) -> bytes | None:
+        """Take the next exchange for `data`; its reply, or fail the test."""
+        step = len(self.written)
+        self.written.append((data, self.now()))
+        if step >= len(self.exchanges):
+            self._fail(f"unexpected request #{step}: {data!r} (the script has {len(self.exchanges)})")
+        expected, reply = self.exchanges[step]
+        if data != expected:
+            self._fail(f"request #{step}: expected {expected!r}, got {data!r}")
+        return reply
+
+    def _fail(self, problem: str) -> NoReturn:
+        self._problems.append(problem)
+        raise AssertionError(problem)
+
+    def check_complete(self) -> None:
+        assert not self._problems, self._problems
+        missing = self.exchanges[len(self.written):]
+        assert not missing, f"exchanges the driver never made: {missing}"
+
+    # -- a pyserial port ---------------------------------------------------------------------------
+    def open_port(self, url: str, *, baudrate: int, timeout: float, write_timeout: float) -> ReplayPort:
+        self.opens += 1
+        return ReplayPort(self, timeout)
+
+    # -- a pymodbus client -------------------------------------------------------------------------
+    def open_client(self, url: str, timeout_s: float) -> ReplayModbusClient:
+        return ReplayModbusClient(self, timeout_s)
+
+
+class ReplayPort:
+    """A pyserial port whose far end is the script: one write is one request."""
+
+    def __init__(self, replay: Replay, timeout: float | None = None):
+        self.replay = replay
+        self.timeout = timeout
+        self.is_open = True
+        self._pending: bytes | None = None
+
+    def write(self, data: bytes, /) -> int:
+        assert self.is_open, f"write {data!r} on a closed port"
+        self._pending = self.replay.request(data)
+        return len(data)
+
+    def flush(self) -> None:
+        pass
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        self.replay.read_timeouts.append(self.timeout)
+        if self._pending is None:
+            self.replay._fail(f"read after {self.replay.written[-1][0]!r}, which has no reply in the script"
+                              if self.replay.written else "read before any request")
+        reply, self._pending = self._pending, None
+        return reply or b""
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+class ReplayModbusClient(ModbusTcpClient):
+    """pymodbus' Modbus/TCP client with the script in place of its socket; replies get the request's header."""
+
+    def __init__(self, replay: Replay, timeout_s: float):
+        super().__init__("replay", timeout=timeout_s, retries=0)
+        self.replay = replay
+        self._open = False
+        self._incoming = b""
+
+    @property
+    def connected(self) -> bool:
+        return self._open
+
+    def connect(self) -> bool:
+        if not self._open:
+            self.replay.opens += 1
+        self._open = True
+        return True
+
+    def close(self) -> None:
+        self._open = False
+
+    def send(self, request: bytes, addr: tuple | None = None) -> int:
+        header, pdu = request[:7], request[7:]
+        reply = self.replay.request(pdu)
+        if reply is not None:
+            self._incoming = header[:4] + (len(reply) + 1).to_bytes(2, "big") + header[6:7] + reply
+        return len(request)
+
+    def recv(self, size: int | None) -> bytes:
+        data, self._incoming = self._incoming, b""
+        return data
 
 
 # ---------------------------------------------------------------------------------------------------------------------

@@ -169,8 +169,10 @@ if kind == "board": pass
 
 
 def imported_test_modules(module: ast.Module) -> list[tuple[int, str]]:
-    """The test modules `module` imports (line, module), at any depth: `import test_x`, `from test_x import y`,
-    `from tests.folder.test_x import y`, `from .test_x import y`, `from . import test_x`."""
+    """The test modules and conftest files `module` imports (line, module), at any depth: `import test_x`,
+    `from test_x import y`, `from tests.folder.test_x import y`, `from .test_x import y`, `from . import test_x`,
+    `from conftest import y` (a conftest is pytest's to load: which one `import conftest` finds depends on the
+    order of sys.path)."""
     found = []
     for node in ast.walk(module):
         if isinstance(node, ast.Import):
@@ -182,7 +184,7 @@ def imported_test_modules(module: ast.Module) -> list[tuple[int, str]]:
         else:
             continue
         found += [(node.lineno, name) for name in names
-                  if any(part.startswith("test_") for part in name.lstrip(".").split("."))]
+                  if any(part.startswith("test_") or part == "conftest" for part in name.lstrip(".").split("."))]
     return sorted(found)
 
 
@@ -208,7 +210,9 @@ from shared import Folder, warm
 from repo_paths import ROOT
 import pytest_timeout
 from rig.cli.main import main
+from conftest import Replay
+import conftest_helpers
 ''')
     assert imported_test_modules(sample) == [(2, "test_runner"), (3, "test_rows"), (5, "test_folder"),
                                              (6, "tests.acquisition.test_runner"), (7, ".test_fit"),
-                                             (8, ".test_predict")]
+                                             (8, ".test_predict"), (13, "conftest")]

@@ -12,8 +12,8 @@ were found. The driver against the rebuilt peer, with every fault, is in test_za
 import re
 
 import pytest
-from conftest import Exchange, Replay, ReplayPort
 from shared import ZABER_CONNECT as CONNECT
+from shared import Exchange, Replay, ReplayPort
 
 from rig.config.rigfile import AxisConfig
 from rig.core.errors import DeviceError
