@@ -1,9 +1,13 @@
 """Compare what the fault and stop scenarios wrote under two versions of rig (issue 32).
 
-    RIG_SCENARIO_DUMP=/tmp/before python -m pytest -p scenario_dump -n 0 tests/acquisition   # old version
-    RIG_SCENARIO_DUMP=/tmp/after  python -m pytest -p scenario_dump -n 0 tests/acquisition   # new version
-    RIG_SCENARIO_DUMP=/tmp/before2 python -m pytest ...                                   # old version again
+    python benchmarks/scenario_dump_at.py OLD /tmp/before      # the scenarios as commit OLD writes them
+    python benchmarks/scenario_dump_at.py NEW /tmp/after
+    python benchmarks/scenario_dump_at.py OLD /tmp/before2     # the old version again
     python benchmarks/scenario_identity.py /tmp/before /tmp/after [--repeat /tmp/before2]
+
+(A dump of this checkout as it is: `RIG_SCENARIO_DUMP=/tmp/after python -m pytest -p scenario_dump -n 0
+tests/acquisition tests/cli/test_end_to_end.py`. A worktree of another commit must import as that commit:
+benchmarks/source_tree.py says why and how.)
 
 Each scenario's datasets (brdf.csv, dataset.json, events.jsonl, ...) and its captured terminal output are
 compared line by line after masking what differs from run to run by nature: loopback ports, pseudo-terminal
