@@ -240,6 +240,10 @@ NOT_THE_POINTS_DATA = {
     ("rig.acquisition.ledger", "Ledger.started"): "a point goes ahead: the lamp-check mark counts it",
     ("rig.acquisition.moves", "Mover.start"): "the next point's move, started before this point's frames merge",
     ("rig.acquisition.eta", "Eta.done"): "the ETA counts the point done",
+    # A device slow to answer on a loaded machine: the point is retried or taken again, its row as before.
+    ("rig.data.dataset_writer", "DatasetWriter.event"): "the retry's event in events.jsonl",
+    ("rig.acquisition.moves", "Mover.resync"): "the axes read again after a device's failure",
+    ("rig.acquisition.ledger", "Ledger.rewind"): "points a pause takes back, to be measured again",
     # The CLI made these calls itself before issue 32 (commit 381cda1, whose path docs/architecture.md counts with
     # this test too); the pre-flight and the run make them now, inside hops 2 and 3.
     ("rig.config.campaign", "check_campaign_for_rig"): "a check: its verdict stops the run, nothing of it is in a row",
