@@ -233,9 +233,10 @@ class SimCamera(LuminanceCamera):
         if not np.isfinite(exposure_s):
             raise DeviceError("camera", f"exposure time {exposure_s!r} s is not a number")
         t = float(np.clip(exposure_s, self.sensor.min_exposure_s, self.sensor.max_exposure_s))
-        start = self.world.clock.now()
-        lum = 0.0 if dark else self.luminance(window, self.world.illuminance_normal_lx(start + t / 2), np.float32)
-        pixels = self.model.read(self.world.rng, lum, t, window)
+        with self.world.computing():        # rendering is no rig time: a real frame costs exposure + readout
+            start = self.world.clock.now()
+            lum = 0.0 if dark else self.luminance(window, self.world.illuminance_normal_lx(start + t / 2), np.float32)
+            pixels = self.model.read(self.world.rng, lum, t, window)
         fraction = (window.width * window.height) / (full.width * full.height)
         duration = t + self.world.config.camera.readout_s * fraction
         return Frame(pixels, t, window, dark=dark, meta={"start_s": start}), duration

@@ -13,8 +13,11 @@ import math
 import os
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from rig.core.clock import Clock
+from rig.drivers.wallclock import WallClock
 
 #: Environment variable with the default pace of new SimClocks (wall seconds per rig second).
 PACE_ENV = "RIG_SIM_PACE"
@@ -86,3 +89,55 @@ class SimClock(Clock):
             if delay > 0:
                 time.sleep(delay)
             self._check()
+
+
+class ServedClock(WallClock):
+    """The served world's clock (`rig sim serve --speed N`): `N` rig seconds per wall second, standing still
+    while the world computes (`computing`).
+
+    The world serves clients in other processes, so it runs on wall time; but the wall time it spends rendering a
+    frame is no rig time of a real camera, whose frame costs its exposure and readout (which the camera model
+    charges). Counted, it would pass `N` times over while the client waits for the frame: at speed 200 a 30 ms
+    render is 6 rig s, longer than the lamp supply's communication watchdog, which switched the lamp off before
+    every frame of `rig calibrate geometry`'s lamp views. Every peer sees the world's time stand still meanwhile,
+    as in the in-process world, where computing costs no rig time either.
+    """
+
+    def __init__(self, scale: float = 1.0):
+        super().__init__(scale)
+        self._lock = threading.Lock()
+        self._held_since: float | None = None     # wall time the current hold began (holds may nest)
+        self._holds = 0
+        self._held_s = 0.0                         # wall time held before the current hold
+
+    def now(self) -> float:
+        with self._lock:
+            wall = time.monotonic() if self._held_since is None else self._held_since
+            return (wall - self._origin - self._held_s) * self.scale
+
+    def sleep(self, seconds: float) -> None:
+        """Until `seconds` of this clock's time have passed (a hold meanwhile lengthens the wait), in wall slices
+        of at most CHECK_SLICE_S."""
+        if seconds < 0:
+            raise ValueError(f"cannot sleep a negative time ({seconds} s)")
+        end = self.now() + seconds
+        self._check()
+        while (left := end - self.now()) > 0:
+            time.sleep(min(left / self.scale, self.CHECK_SLICE_S, self._until_due_s() / self.scale))
+            self._check()
+
+    @contextmanager
+    def computing(self) -> Iterator[None]:
+        """Rig time stands still for the duration."""
+        with self._lock:
+            if self._holds == 0:
+                self._held_since = time.monotonic()
+            self._holds += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holds -= 1
+                if self._holds == 0 and self._held_since is not None:
+                    self._held_s += time.monotonic() - self._held_since
+                    self._held_since = None

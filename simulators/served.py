@@ -5,7 +5,8 @@ SM15K lamp supply on loopback TCP, the P-9710 meter on a pseudo-terminal — plu
 the simulated camera behind docs/sim-camera-protocol.md, all driving one world
 that lives in this process: axis positions, lamp temperature and age, the supply's
 watchdog persist across client connections, as a real rig's do. The world runs on
-a wall clock `speed` times faster than wall time; the rig file written for clients
+a wall clock `speed` times faster than wall time, which stands still while a frame
+renders (ServedClock: rendering is no rig time); the rig file written for clients
 says `simulated: false` (they treat it as hardware) and carries the same
 `time_scale`, so their waits shrink alike.
 
@@ -27,9 +28,9 @@ import yaml
 
 from rig.config.rigdevices import SERVED_CAMERA
 from rig.config.rigfile import RigConfig
-from rig.drivers.wallclock import WallClock
 from rig.physics.brdf_models import get_model
 from rig.simulators.camera_server import CameraServer
+from rig.simulators.clock import ServedClock
 from rig.simulators.delta_sm_peer import DeltaSMPeer
 from rig.simulators.rig import protocol_peers
 from rig.simulators.world import SimWorld
@@ -44,7 +45,7 @@ class ServedRig:
 
     def __init__(self, base: RigConfig, brdf_model: str, brdf_params: Mapping[str, float], speed: float = 1.0):
         self.speed = speed
-        self.world = SimWorld(base, get_model(brdf_model), brdf_params, clock=WallClock(speed))
+        self.world = SimWorld(base, get_model(brdf_model), brdf_params, clock=ServedClock(speed))
         self.peers = protocol_peers(self.world)
         lamp = self.peers["lamp"]
         assert isinstance(lamp, DeltaSMPeer)

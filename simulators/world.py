@@ -8,6 +8,7 @@ them. Nothing here knows about protocols.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from contextlib import AbstractContextManager, nullcontext
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from rig.physics.brdf_models import BrdfModel
 from rig.physics.geometry import AXIS_NAMES, sample_frame
 from rig.physics.goniometer_fit import rotation_from_vector
 from rig.planning.points import as_motors
-from rig.simulators.clock import SimClock
+from rig.simulators.clock import ServedClock, SimClock
 from rig.simulators.lamp import LampPhysics
 
 
@@ -26,8 +27,8 @@ class SimWorld:
 
     def __init__(self, config: RigConfig, brdf: BrdfModel, brdf_params: Mapping[str, float],
                  clock: Clock | None = None):
-        """`clock`: a SimClock (the in-process simulated rig, the default) or a wall clock that runs
-        `--speed` times faster (a served rig, `rig sim serve`)."""
+        """`clock`: a SimClock (the in-process simulated rig, the default) or a ServedClock, a wall clock that runs
+        `--speed` times faster and stands still while the world computes (a served rig, `rig sim serve`)."""
         self.config = config
         self.clock = clock or SimClock()
         self.rng = np.random.default_rng(config.simulation.seed)
@@ -66,6 +67,11 @@ class SimWorld:
             self.clock.advance(seconds)
         else:
             self.clock.sleep(seconds)
+
+    def computing(self) -> AbstractContextManager[None]:
+        """Where the world computes (a frame rendered), which costs no rig time: a served world's clock stands
+        still meanwhile (ServedClock); a SimClock only moves when slept on anyway."""
+        return self.clock.computing() if isinstance(self.clock, ServedClock) else nullcontext()
 
     def brdf(self, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
         """Ground-truth f_r (sr⁻¹) for SCS unit vectors."""
