@@ -14,6 +14,7 @@ from __future__ import annotations
 import datetime
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Literal
 
 import cv2
@@ -31,7 +32,7 @@ from rig.config.geometry_calibration import (
 )
 from rig.config.rigfile import RigConfig
 from rig.core.values import SensorInfo
-from rig.drivers.interfaces import LuminanceCamera, RigDevices
+from rig.drivers.interfaces import LampSupply, LuminanceCamera, RigDevices
 from rig.physics import goniometer_fit as gf
 from rig.physics.charuco_board import BoardLayout
 from rig.planning.collisions import path_crosses, zones_of
@@ -90,7 +91,7 @@ def measure(devices: RigDevices, config: RigConfig, board: BoardLayout, *, show:
         clearest = max(config.attenuator.filters, key=lambda f: f.transmission)       # the board is dim
         devices.attenuator.move_to(clearest.position)
     show(board.scene())
-    boards = _take_views(devices, config, "board", board_poses, lambda px: _corners(detector, px, sensor),
+    boards = _take_views(devices, config, "board", board_poses, lambda take: _corners(detector, take(), sensor),
                          lambda seen: f"{seen.count} corners", progress)
     found = [s for s in boards if s.rejected is None]
     if not found:
@@ -213,10 +214,10 @@ Found = tuple[np.ndarray | None, np.ndarray | None, str | None]
 
 
 def _take_views(devices: RigDevices, config: RigConfig, kind: Literal["board", "lamp"], poses: list[Motors],
-                find: Callable[[np.ndarray], Found], describe: Callable[[_Seen], str],
+                find: Callable[[Callable[[], np.ndarray]], Found], describe: Callable[[_Seen], str],
                 progress: Callable[[str], None]) -> list[_Seen]:
-    """Each pose in turn: move, read the axes back, take a picture at the exposure metered on the first one and let
-    `find` look in it; a pose the rig cannot reach is kept as rejected, with why."""
+    """Each pose in turn: move, read the axes back, and let `find` look in the picture its argument takes (at the
+    exposure metered on the first pose); a pose the rig cannot reach is kept as rejected, with why."""
     camera, sensor = devices.camera, devices.camera.sensor
     views: list[_Seen] = []
     exposure: float | None = None
@@ -227,16 +228,38 @@ def _take_views(devices: RigDevices, config: RigConfig, kind: Literal["board", "
         else:
             seen.motors_deg = _read_back(devices)
             exposure = exposure or _meter(camera, sensor)
-            seen.ids, seen.points_px, seen.rejected = find(camera.capture(exposure).pixels_dn)
+            seen.ids, seen.points_px, seen.rejected = find(partial(_picture, camera, exposure))
         progress(f"{seen.label}: {seen.rejected or describe(seen)}")
         views.append(seen)
     return views
 
 
-def _lamp_exit(pixels: np.ndarray, sensor: SensorInfo) -> Found:
-    """A lamp view's find: the exit's centroid as the one point, or why there is none."""
-    centroid, why = lamp_centroid(pixels, sensor)
+def _picture(camera: LuminanceCamera, exposure_s: float) -> np.ndarray:
+    return camera.capture(exposure_s).pixels_dn
+
+
+def _lamp_exit(take: Callable[[], np.ndarray], sensor: SensorInfo, lamp: LampSupply, config: RigConfig,
+               progress: Callable[[str], None]) -> Found:
+    """A lamp view's find: the exit's centroid as the one point, or why there is none. An exit not found is asked
+    of the supply: an output the supply switched off itself (its communication watchdog, after the computer
+    stalled) is switched on again and the picture taken once more; one held off by something else (an interlock,
+    a fault) is named."""
+    centroid, why = lamp_centroid(take(), sensor)
+    if centroid is None and (loss := lamp.output_loss()) is not None:
+        why = f"lamp exit not found: the lamp is off: {loss.reason}"
+        if loss.restart:
+            progress(f"the lamp is off: {loss.reason}; switched on again, the picture taken once more")
+            _light(lamp, config)
+            centroid, again = lamp_centroid(take(), sensor)
+            why = None if again is None else f"{why}; switched on again: {again}"
     return None, (None if centroid is None else centroid[None, :]), why
+
+
+def _light(lamp: LampSupply, config: RigConfig) -> None:
+    """The lamp on at the rig file's current, ramped up from zero."""
+    lamp.set_current(0.0)
+    lamp.set_output(True)
+    lamp.set_current(config.lamp.current_a, ramp_s=config.lamp.ramp_s)
 
 
 def _lamp_views(devices: RigDevices, config: RigConfig, poses: list[Motors],
@@ -245,10 +268,9 @@ def _lamp_views(devices: RigDevices, config: RigConfig, poses: list[Motors],
     lamp, sensor = devices.lamp, devices.camera.sensor
     views: list[_Seen] = []
     try:
-        lamp.set_current(0.0)
-        lamp.set_output(True)
-        lamp.set_current(config.lamp.current_a, ramp_s=config.lamp.ramp_s)
-        views = _take_views(devices, config, "lamp", poses, lambda px: _lamp_exit(px, sensor),
+        _light(lamp, config)
+        views = _take_views(devices, config, "lamp", poses,
+                            lambda take: _lamp_exit(take, sensor, lamp, config, progress),
                             lambda seen: "lamp exit at ({:.2f}, {:.2f}) px".format(*seen.found()[1][0]), progress)
     finally:
         lamp.set_output(False)

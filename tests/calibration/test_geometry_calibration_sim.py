@@ -127,3 +127,49 @@ def test_the_board_is_seen_through_the_clearest_filter_of_the_wheel(tmp_path):
         with pytest.raises(Stop):
             measure(sim.devices, config, BoardLayout(), board_poses=[], lamp_poses=[], show=stop)
         assert sim.devices.attenuator.position() == 1
+
+
+def test_a_lamp_the_supply_keeps_off_is_named_in_each_lamp_view(tmp_path):
+    """The interlock opens as the lamp views begin: each view's line says why the exit is dark, as the supply tells
+    it (a served rig too fast for its client's computing gets its communication watchdog's reason the same way)."""
+    config = load_rig_config(write_rig(tmp_path))
+    boards, lamps = calibration_poses(6, 2)
+    lines: list[str] = []
+    with SimulatedRig(config, "lambert", {"kd": 0.5}) as sim:
+        camera = sim.devices.camera
+
+        def show(scene):
+            if scene == "open":
+                sim.peers["lamp"].set_interlock(True)
+            camera.show(scene)
+
+        with pytest.raises(GeometryCalibrationError, match="0 lamp views left"):
+            measure(sim.devices, config, BoardLayout(), board_poses=boards, lamp_poses=lamps, show=show,
+                    progress=lines.append)
+        assert not sim.devices.lamp.output_is_on()
+    lamp_lines = [line for line in lines if line.startswith("lamp-")]
+    assert len(lamp_lines) == 2
+    assert all("lamp exit not found: the lamp is off: " in line and "interlock" in line for line in lamp_lines)
+
+
+def test_a_lamp_its_supply_switched_off_after_a_stall_is_switched_on_again_and_the_view_taken_once_more(tmp_path):
+    """The computer stalls past the supply's communication watchdog after the first lamp view (as a served rig's
+    client does when the rig runs many times faster than its computing): the next view finds the exit dark, the
+    supply says its watchdog switched the output off, the lamp goes on again and the view counts."""
+    config = load_rig_config(write_rig(tmp_path))
+    boards, lamps = calibration_poses(6, 2)
+    lines: list[str] = []
+    with SimulatedRig(config, "lambert", {"kd": 0.5}) as sim:
+        def stall_after_the_first_lamp_view(line: str) -> None:
+            lines.append(line)
+            if line.startswith("lamp-01"):
+                sim.world.clock.advance(2 * config.lamp.watchdog_s)      # no command meanwhile: no feed
+                assert sim.peers["lamp"].check_watchdog() is not None
+
+        measure(sim.devices, config, BoardLayout(), board_poses=boards, lamp_poses=lamps, show=sim.devices.camera.show,
+                progress=stall_after_the_first_lamp_view)
+        assert not sim.devices.lamp.output_is_on()
+    relit = [line for line in lines if "switched on again" in line]
+    assert len(relit) == 1 and "the supply's communication watchdog switched the output off" in relit[0]
+    assert [line.split(":")[0] for line in lines if line.startswith("lamp-") and "lamp exit at" in line] == [
+        "lamp-01", "lamp-02"]
