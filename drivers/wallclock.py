@@ -22,12 +22,14 @@ class WallClock(Clock):
         return (time.monotonic() - self._origin) * self.scale
 
     def sleep(self, seconds: float) -> None:
-        """Sleep in slices of at most CHECK_SLICE_S of wall time, so that `sleep_check` can end a long
-        move's wait, and no longer than the next keep-alive is due."""
+        """Until `seconds` of this clock's time have passed, in slices of at most CHECK_SLICE_S of wall time, so
+        that `sleep_check` can end a long move's wait, and no longer than the next keep-alive is due. Counted on
+        `now()`, so that a clock that stands still for a while (the served world's, rig.simulators.clock) sleeps
+        longer by as much."""
         if seconds < 0:
             raise ValueError(f"cannot sleep a negative time ({seconds} s)")
-        end = time.monotonic() + seconds / self.scale
+        end = self.now() + seconds
         self._check()
-        while (left := end - time.monotonic()) > 0:
-            time.sleep(min(left, self.CHECK_SLICE_S, self._until_due_s() / self.scale))
+        while (left := end - self.now()) > 0:
+            time.sleep(min(left / self.scale, self.CHECK_SLICE_S, self._until_due_s() / self.scale))
             self._check()

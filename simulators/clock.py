@@ -115,17 +115,6 @@ class ServedClock(WallClock):
             wall = time.monotonic() if self._held_since is None else self._held_since
             return (wall - self._origin - self._held_s) * self.scale
 
-    def sleep(self, seconds: float) -> None:
-        """Until `seconds` of this clock's time have passed (a hold meanwhile lengthens the wait), in wall slices
-        of at most CHECK_SLICE_S."""
-        if seconds < 0:
-            raise ValueError(f"cannot sleep a negative time ({seconds} s)")
-        end = self.now() + seconds
-        self._check()
-        while (left := end - self.now()) > 0:
-            time.sleep(min(left / self.scale, self.CHECK_SLICE_S, self._until_due_s() / self.scale))
-            self._check()
-
     @contextmanager
     def computing(self) -> Iterator[None]:
         """Rig time stands still for the duration."""
